@@ -1,0 +1,190 @@
+"""Pytree containers shared by every stage.
+
+All geometry is in world space, right-handed, +Y up (glTF convention); lengths are in the scene's own
+units (``Scene.unit_m`` metres per unit). Radiance is linear RGB in W·sr⁻¹·m⁻² up to a common scale.
+"""
+
+from __future__ import annotations
+
+import equinox as eqx
+import jax.numpy as jnp
+from jaxtyping import Array, Bool, Float, Int
+
+
+def _check_last(name: str, x, tail: tuple[int, ...]) -> None:
+    if tuple(x.shape[len(x.shape) - len(tail) :]) != tail:
+        raise ValueError(f"{name} must end in shape {tail}, got {tuple(x.shape)}")
+
+
+class Materials(eqx.Module):
+    """Material table; a triangle refers to a row by index (``Scene.tri_material``).
+
+    Attributes:
+        base_color: linear RGB albedo in [0, 1] (glTF ``baseColorFactor``).
+        roughness: perceptual roughness in [0, 1] (glTF; GGX alpha = roughness²).
+        metallic: metalness in [0, 1].
+        emission: emitted radiance, linear RGB (glTF ``emissiveFactor`` × ``KHR_materials_emissive_strength``).
+        names: one name per material (static).
+    """
+
+    base_color: Float[Array, "n_mat 3"]
+    roughness: Float[Array, " n_mat"]
+    metallic: Float[Array, " n_mat"]
+    emission: Float[Array, "n_mat 3"]
+    names: tuple[str, ...] = eqx.field(static=True)
+
+    def __check_init__(self):
+        n = len(self.names)
+        _check_last("base_color", self.base_color, (n, 3))
+        _check_last("emission", self.emission, (n, 3))
+        _check_last("roughness", self.roughness, (n,))
+        _check_last("metallic", self.metallic, (n,))
+
+
+class Sun(eqx.Module):
+    """A distant disk light.
+
+    Attributes:
+        direction: unit vector from the scene *towards* the sun (world frame).
+        radiance: radiance of the sun's disk, linear RGB.
+        angular_radius: half-angle of the disk in radians (the real sun: ~0.00465).
+    """
+
+    direction: Float[Array, "3"]
+    radiance: Float[Array, "3"]
+    angular_radius: Float[Array, ""]
+
+
+class Camera(eqx.Module):
+    """A pinhole camera in look-at form (up = +Y unless given)."""
+
+    position: Float[Array, "3"]
+    look_at: Float[Array, "3"]
+    up: Float[Array, "3"]
+    fov_y_deg: Float[Array, ""]
+    name: str = eqx.field(static=True)
+
+
+class Scene(eqx.Module):
+    """A triangle scene with materials, lights and named views.
+
+    Build it with :func:`probeplace.scene.build_scene` (which validates and repairs input) rather
+    than by hand.
+
+    Attributes:
+        vertices: vertex positions, world frame.
+        faces: vertex indices per triangle, counter-clockwise seen from the front side.
+        corner_normals: shading normal at each triangle corner (crease-angle smoothed), unit length.
+        tri_material: row of ``materials`` per triangle.
+        tri_part: index into ``part_names`` per triangle (the glTF node / OBJ object it came from).
+        materials: the material table.
+        emissive_tris: indices of triangles whose material emits (the area lights).
+        sun: optional distant sun; ``None`` when the scene is lit only by emitters / sky.
+        sky_radiance: constant sky radiance seen by rays that leave the scene (zeros: no sky).
+        views: named cameras that show the interior.
+        name: scene name (static).
+        part_names: names of the parts (static).
+        unit_m: metres per scene unit (static), e.g. 0.001 for the Cornell box in millimetres.
+    """
+
+    vertices: Float[Array, "n_vert 3"]
+    faces: Int[Array, "n_tri 3"]
+    corner_normals: Float[Array, "n_tri 3 3"]
+    tri_material: Int[Array, " n_tri"]
+    tri_part: Int[Array, " n_tri"]
+    materials: Materials
+    emissive_tris: Int[Array, " n_emit"]
+    sun: Sun | None
+    sky_radiance: Float[Array, "3"]
+    views: tuple[Camera, ...]
+    name: str = eqx.field(static=True)
+    part_names: tuple[str, ...] = eqx.field(static=True)
+    unit_m: float = eqx.field(static=True, default=1.0)
+
+    def __check_init__(self):
+        _check_last("vertices", self.vertices, (3,))
+        _check_last("faces", self.faces, (3,))
+        n_tri = self.faces.shape[-2]
+        _check_last("corner_normals", self.corner_normals, (n_tri, 3, 3))
+        _check_last("tri_material", self.tri_material, (n_tri,))
+        _check_last("tri_part", self.tri_part, (n_tri,))
+
+    @property
+    def n_triangles(self) -> int:
+        return int(self.faces.shape[-2])
+
+    @property
+    def triangles(self) -> Float[Array, "n_tri 3 3"]:
+        """Per-triangle corner positions (a gather; cache it if used in a loop)."""
+        return self.vertices[self.faces]
+
+    @property
+    def bounds(self) -> Float[Array, "2 3"]:
+        """Axis-aligned bounding box, rows (min, max)."""
+        return jnp.stack([self.vertices.min(axis=0), self.vertices.max(axis=0)])
+
+    @property
+    def has_light(self) -> bool:
+        """True if anything emits: an emissive triangle, a sun or a non-black sky."""
+        return bool(
+            self.emissive_tris.shape[0] > 0 or self.sun is not None or float(jnp.max(self.sky_radiance)) > 0
+        )
+
+    def view(self, name: str) -> Camera:
+        for cam in self.views:
+            if cam.name == name:
+                return cam
+        raise KeyError(f"scene {self.name!r} has no view {name!r}; views: {[c.name for c in self.views]}")
+
+
+class Hit(eqx.Module):
+    """Closest-hit record for a batch of rays; misses have ``t = inf`` and ``tri = -1``.
+
+    Attributes:
+        t: distance along the (unit) ray direction.
+        tri: triangle index, -1 on a miss.
+        bary: barycentrics (u, v): the point is (1-u-v)·v0 + u·v1 + v·v2.
+        geo_normal: geometric (face) normal, unit, on the triangle's front side (not flipped toward the ray).
+        shading_normal: interpolated corner normal, unit.
+        material: material row, -1 on a miss.
+    """
+
+    t: Float[Array, " n_rays"]
+    tri: Int[Array, " n_rays"]
+    bary: Float[Array, "n_rays 2"]
+    geo_normal: Float[Array, "n_rays 3"]
+    shading_normal: Float[Array, "n_rays 3"]
+    material: Int[Array, " n_rays"]
+
+    @property
+    def hit(self) -> Bool[Array, " n_rays"]:
+        return self.tri >= 0
+
+
+class ProbeSet(eqx.Module):
+    """Probe positions with an activity mask (fixed capacity so refiners never change shapes).
+
+    Attributes:
+        pos_world: probe centres, world frame.
+        active: which rows are real probes.
+        method: registry name of the placer that made the set (static).
+    """
+
+    pos_world: Float[Array, "n_probes 3"]
+    active: Bool[Array, " n_probes"]
+    method: str = eqx.field(static=True, default="manual")
+
+    def __check_init__(self):
+        _check_last("pos_world", self.pos_world, (3,))
+        if self.active.shape != self.pos_world.shape[:-1]:
+            raise ValueError(
+                f"active must have shape {self.pos_world.shape[:-1]}, got {tuple(self.active.shape)}"
+            )
+
+    @property
+    def capacity(self) -> int:
+        return int(self.pos_world.shape[-2])
+
+    @property
+    def n_active(self) -> int:
+        return int(jnp.sum(self.active))

@@ -1,0 +1,1 @@
+"""placement stage (see DESIGN.md)."""

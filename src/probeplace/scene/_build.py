@@ -1,0 +1,182 @@
+"""Validate raw triangle data and assemble a :class:`~probeplace._core.Scene`.
+
+Every loader and built-in scene goes through :func:`build_scene`, so input checks live in one place.
+"""
+
+from __future__ import annotations
+
+import logging
+from collections.abc import Sequence
+
+import jax.numpy as jnp
+import numpy as np
+
+from .._core import Camera, Materials, Scene, SceneError, Sun
+
+log = logging.getLogger(__name__)
+
+# A triangle whose area is below this fraction of (bbox diagonal)² is degenerate: float32 cannot
+# give it a stable normal, and it contributes nothing to rendering.
+_DEGENERATE_REL_AREA = 1e-14
+# Corner normals are averaged only over faces within this angle (hard edges stay hard).
+CREASE_ANGLE_DEG = 30.0
+
+
+def make_materials(
+    names: Sequence[str],
+    base_color: np.ndarray,
+    roughness: np.ndarray | None = None,
+    metallic: np.ndarray | None = None,
+    emission: np.ndarray | None = None,
+) -> Materials:
+    """Material table from numpy arrays, with glTF defaults (roughness 1, metallic 0, no emission)."""
+    n = len(names)
+    base_color = np.asarray(base_color, np.float32).reshape(n, 3)
+    roughness = np.ones(n, np.float32) if roughness is None else np.asarray(roughness, np.float32).reshape(n)
+    metallic = np.zeros(n, np.float32) if metallic is None else np.asarray(metallic, np.float32).reshape(n)
+    emission = np.zeros((n, 3), np.float32) if emission is None else np.asarray(emission, np.float32)
+    for label, arr in (("base_color", base_color), ("roughness", roughness), ("metallic", metallic)):
+        if not np.all(np.isfinite(arr)):
+            raise SceneError(f"material {label} has non-finite values")
+    if np.any(emission < 0) or not np.all(np.isfinite(emission)):
+        raise SceneError("material emission must be finite and non-negative")
+    return Materials(
+        base_color=jnp.asarray(np.clip(base_color, 0.0, 1.0)),
+        roughness=jnp.asarray(np.clip(roughness, 0.0, 1.0)),
+        metallic=jnp.asarray(np.clip(metallic, 0.0, 1.0)),
+        emission=jnp.asarray(emission.reshape(n, 3)),
+        names=tuple(str(s) for s in names),
+    )
+
+
+def make_camera(position, look_at, fov_y_deg: float, name: str, up=(0.0, 1.0, 0.0)) -> Camera:
+    f32 = lambda x: jnp.asarray(np.asarray(x, np.float32))
+    return Camera(position=f32(position), look_at=f32(look_at), up=f32(up), fov_y_deg=f32(fov_y_deg), name=name)
+
+
+def make_sun(direction, radiance, angular_radius: float = 0.00465) -> Sun:
+    d = np.asarray(direction, np.float64)
+    n = np.linalg.norm(d)
+    if not np.isfinite(n) or n == 0:
+        raise SceneError(f"sun direction must be a non-zero finite vector, got {direction}")
+    return Sun(
+        direction=jnp.asarray((d / n).astype(np.float32)),
+        radiance=jnp.asarray(np.asarray(radiance, np.float32)),
+        angular_radius=jnp.asarray(np.float32(angular_radius)),
+    )
+
+
+def crease_normals(vertices: np.ndarray, faces: np.ndarray, crease_deg: float = CREASE_ANGLE_DEG) -> np.ndarray:
+    """Per-corner shading normals: area-weighted face normals averaged over the faces that share the
+    vertex *and* lie within ``crease_deg`` of the corner's own face (so a box keeps flat faces while a
+    tessellated column is smooth). Returns (n_tri, 3, 3) unit vectors.
+    """
+    v = vertices.astype(np.float64)
+    tri = v[faces]
+    cross = np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0])  # |cross| = 2·area: area weighting
+    fn = cross / np.maximum(np.linalg.norm(cross, axis=1, keepdims=True), 1e-300)
+    n_tri = len(faces)
+    corners_v = faces.reshape(-1)  # (3·n_tri,) vertex of each corner
+    corners_f = np.repeat(np.arange(n_tri), 3)
+    # Pairs (corner c, face g) for every face g sharing c's vertex: sort corners by vertex, then
+    # expand each vertex's group. Vertex valence is small, so this stays linear in practice.
+    order = np.argsort(corners_v, kind="stable")
+    sv = corners_v[order]
+    starts = np.flatnonzero(np.r_[True, sv[1:] != sv[:-1]])
+    counts = np.diff(np.r_[starts, len(sv)])
+    group_of = np.repeat(np.arange(len(starts)), counts)
+    # For corner at sorted position i, partners are sorted positions starts[g] .. starts[g]+counts[g]-1.
+    rep = counts[group_of]
+    ci = np.repeat(np.arange(len(sv)), rep)
+    offs = np.arange(rep.sum()) - np.repeat(np.cumsum(rep) - rep, rep)
+    pj = starts[group_of[ci]] + offs
+    fi = corners_f[order[ci]]
+    fj = corners_f[order[pj]]
+    cos_lim = np.cos(np.deg2rad(crease_deg))
+    keep = np.einsum("ij,ij->i", fn[fi], fn[fj]) >= cos_lim
+    acc = np.zeros((len(sv), 3))
+    np.add.at(acc, ci[keep], cross[fj[keep]])
+    out = np.zeros((3 * n_tri, 3))
+    out[order] = acc
+    out /= np.maximum(np.linalg.norm(out, axis=1, keepdims=True), 1e-300)
+    return out.reshape(n_tri, 3, 3).astype(np.float32)
+
+
+def build_scene(
+    name: str,
+    vertices: np.ndarray,
+    faces: np.ndarray,
+    tri_material: np.ndarray,
+    materials: Materials,
+    *,
+    tri_part: np.ndarray | None = None,
+    part_names: Sequence[str] = ("mesh",),
+    views: Sequence[Camera] = (),
+    sun: Sun | None = None,
+    sky_radiance=(0.0, 0.0, 0.0),
+    unit_m: float = 1.0,
+    source: str = "<memory>",
+) -> Scene:
+    """Check raw triangle data, drop degenerate triangles (logged with a count) and build a Scene.
+
+    Raises:
+        SceneError: empty mesh, NaN/inf vertices, out-of-range indices or material ids.
+    """
+    vertices = np.asarray(vertices)
+    faces = np.asarray(faces)
+    if vertices.ndim != 2 or vertices.shape[1] != 3:
+        raise SceneError(f"{source}: vertices must have shape (n, 3), got {vertices.shape}")
+    if faces.ndim != 2 or faces.shape[1] != 3 or faces.shape[0] == 0:
+        raise SceneError(f"{source}: the scene has no triangles (faces shape {faces.shape})")
+    bad = ~np.all(np.isfinite(vertices), axis=1)
+    if bad.any():
+        first = int(np.flatnonzero(bad)[0])
+        raise SceneError(
+            f"{source}: {int(bad.sum())} vertices are NaN or infinite (first: index {first}, {vertices[first]})"
+        )
+    if faces.min() < 0 or faces.max() >= len(vertices):
+        raise SceneError(f"{source}: face indices out of range [0, {len(vertices)})")
+    tri_material = np.asarray(tri_material, np.int64).reshape(-1)
+    if tri_material.shape[0] != faces.shape[0]:
+        raise SceneError(f"{source}: tri_material has {tri_material.shape[0]} rows for {faces.shape[0]} triangles")
+    if tri_material.min() < 0 or tri_material.max() >= len(materials.names):
+        raise SceneError(f"{source}: material index out of range [0, {len(materials.names)})")
+    tri_part = np.zeros(len(faces), np.int64) if tri_part is None else np.asarray(tri_part, np.int64)
+    part_names = tuple(str(p) for p in part_names)
+    if tri_part.min() < 0 or tri_part.max() >= len(part_names):
+        raise SceneError(f"{source}: part index out of range [0, {len(part_names)})")
+
+    v64 = vertices.astype(np.float64)
+    tri = v64[faces]
+    area2 = np.linalg.norm(np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0]), axis=1)
+    diag = float(np.linalg.norm(v64.max(0) - v64.min(0)))
+    degenerate = area2 <= 2 * _DEGENERATE_REL_AREA * max(diag, 1e-30) ** 2
+    if degenerate.all():
+        raise SceneError(f"{source}: all {len(faces)} triangles are degenerate (zero area)")
+    if degenerate.any():
+        log.warning("%s: dropped %d degenerate (zero-area) triangles of %d", source, int(degenerate.sum()), len(faces))
+        keep = ~degenerate
+        faces, tri_material, tri_part = faces[keep], tri_material[keep], tri_part[keep]
+
+    # Drop vertices no face uses, so bounds describe the geometry.
+    used, inverse = np.unique(faces.reshape(-1), return_inverse=True)
+    vertices = vertices[used]
+    faces = inverse.reshape(-1, 3)
+
+    emissive_mat = np.asarray(materials.emission).max(axis=1) > 0
+    emissive_tris = np.flatnonzero(emissive_mat[tri_material])
+    return Scene(
+        vertices=jnp.asarray(vertices.astype(np.float32)),
+        faces=jnp.asarray(faces.astype(np.int32)),
+        corner_normals=jnp.asarray(crease_normals(vertices, faces)),
+        tri_material=jnp.asarray(tri_material.astype(np.int32)),
+        tri_part=jnp.asarray(tri_part.astype(np.int32)),
+        materials=materials,
+        emissive_tris=jnp.asarray(emissive_tris.astype(np.int32)),
+        sun=sun,
+        sky_radiance=jnp.asarray(np.asarray(sky_radiance, np.float32)),
+        views=tuple(views),
+        name=name,
+        part_names=part_names,
+        unit_m=float(unit_m),
+    )
