@@ -23,7 +23,8 @@ class Materials(eqx.Module):
         base_color: linear RGB albedo in [0, 1] (glTF ``baseColorFactor``).
         roughness: perceptual roughness in [0, 1] (glTF; GGX alpha = roughness²).
         metallic: metalness in [0, 1].
-        emission: emitted radiance, linear RGB (glTF ``emissiveFactor`` × ``KHR_materials_emissive_strength``).
+        emission: emitted radiance, linear RGB
+            (glTF ``emissiveFactor`` × ``KHR_materials_emissive_strength``).
         names: one name per material (static).
     """
 
@@ -188,3 +189,58 @@ class ProbeSet(eqx.Module):
     @property
     def n_active(self) -> int:
         return int(jnp.sum(self.active))
+
+
+class LightFieldProbes(eqx.Module):
+    """Baked light-field probes (McGuire et al. 2017 §3): per probe, octahedral maps (Cigolle et al. 2014)
+    *with a one-texel border* on every side so bilinear filtering is right across the octahedral edges
+    (Luo 2022 §4.3.5; the DDGI layout). A map of interior resolution R is stored as (R+2)×(R+2).
+
+    Attributes:
+        pos_world: probe centres, world frame.
+        active: which probes are real (a ProbeSet's mask).
+        inside: probes detected inside geometry at bake time (most first hits are back faces).
+        radiance: radiance reflected toward the probe by the first surface hit in each texel's direction
+            (emission excluded: DESIGN.md "indirect means reflected"); sky radiance for rays that escape.
+        emission: radiance emitted toward the probe by that surface.
+        normal: unit shading normal of that surface (zeros where the ray escapes).
+        distance: radial distance to that surface; ``far`` where the ray escapes.
+        irradiance: cosine-convolved irradiance E(n) for a receiver normal n = texel direction.
+        moments: cosine-power filtered E[r] and E[r²] (McGuire §5.2), for the Chebyshev visibility test.
+        distance_min_mips: min-MIP chain of the interior distance map, level 1 (R/2) … coarsest.
+        distance_max_mips: max-MIP chain, same levels (Wang 2019 §4.2 hi-Z uses both bounds).
+        far: the distance stored for escaping rays (a finite value beyond the scene).
+    """
+
+    pos_world: Float[Array, "n_probes 3"]
+    active: Bool[Array, " n_probes"]
+    inside: Bool[Array, " n_probes"]
+    radiance: Float[Array, "n_probes rb rb 3"]
+    emission: Float[Array, "n_probes rb rb 3"]
+    normal: Float[Array, "n_probes rb rb 3"]
+    distance: Float[Array, "n_probes rb rb"]
+    irradiance: Float[Array, "n_probes ib ib 3"]
+    moments: Float[Array, "n_probes mb mb 2"]
+    distance_min_mips: tuple[Float[Array, "n_probes _ _"], ...]
+    distance_max_mips: tuple[Float[Array, "n_probes _ _"], ...]
+    far: Float[Array, ""]
+
+    def __check_init__(self):
+        _check_last("pos_world", self.pos_world, (3,))
+        for name in ("radiance", "emission", "normal", "distance", "irradiance", "moments"):
+            m = getattr(self, name)
+            if m.shape[-3 if m.ndim == 4 else -2] != m.shape[-2 if m.ndim == 4 else -1]:
+                raise ValueError(f"{name} maps must be square, got {tuple(m.shape)}")
+
+    @property
+    def radiance_res(self) -> int:
+        """Interior (borderless) resolution of the radiance / normal / distance maps."""
+        return int(self.radiance.shape[-2]) - 2
+
+    @property
+    def irradiance_res(self) -> int:
+        return int(self.irradiance.shape[-2]) - 2
+
+    @property
+    def moments_res(self) -> int:
+        return int(self.moments.shape[-2]) - 2

@@ -1,4 +1,4 @@
-"""Scenes: loaders, built-in scenes, materials, lights and views."""
+"""Scenes: loaders, built-in scenes, materials, lights and views (see docs/scenes.md)."""
 
 from ._build import build_scene as build_scene
 from ._build import crease_normals as crease_normals
@@ -6,3 +6,28 @@ from ._build import make_camera as make_camera
 from ._build import make_materials as make_materials
 from ._build import make_sun as make_sun
 from ._cornell import cornell_box as cornell_box
+from ._courtyard import courtyard as courtyard
+from ._known import KNOWN_SCENES as KNOWN_SCENES
+from ._known import KnownScene as KnownScene
+from ._load import SCENE_EXTENSIONS as SCENE_EXTENSIONS
+from ._load import SCENE_PATH_ENV as SCENE_PATH_ENV
+from ._load import SceneEntry as SceneEntry
+from ._load import find_scene_file as find_scene_file
+from ._load import list_scenes as list_scenes
+from ._load import load_scene as load_scene
+from ._load import load_scene_file as load_scene_file
+from ._load import scene_search_path as scene_search_path
+from ._raw import derived_views as derived_views
+from ._registry import BUILTIN_SCENES as BUILTIN_SCENES
+from ._rooms import ROOMS_DARK_ROOM_BOUNDS as ROOMS_DARK_ROOM_BOUNDS
+from ._rooms import ROOMS_LIT_ROOM_BOUNDS as ROOMS_LIT_ROOM_BOUNDS
+from ._rooms import ROOMS_WALL_THICKNESS as ROOMS_WALL_THICKNESS
+from ._rooms import rooms as rooms
+from ._sky import DAYLIGHT_SKY_RADIANCE as DAYLIGHT_SKY_RADIANCE
+from ._sky import DAYLIGHT_SUN_IRRADIANCE as DAYLIGHT_SUN_IRRADIANCE
+from ._sky import sun_direction as sun_direction
+from ._sky import sun_from_irradiance as sun_from_irradiance
+from ._temple import TEMPLE_UNDER_STAIRS_BOX as TEMPLE_UNDER_STAIRS_BOX
+from ._temple import temple as temple
+from ._transform import axis_angle_rotation as axis_angle_rotation
+from ._transform import transform_scene as transform_scene

@@ -51,7 +51,9 @@ def make_materials(
 
 def make_camera(position, look_at, fov_y_deg: float, name: str, up=(0.0, 1.0, 0.0)) -> Camera:
     f32 = lambda x: jnp.asarray(np.asarray(x, np.float32))
-    return Camera(position=f32(position), look_at=f32(look_at), up=f32(up), fov_y_deg=f32(fov_y_deg), name=name)
+    return Camera(
+        position=f32(position), look_at=f32(look_at), up=f32(up), fov_y_deg=f32(fov_y_deg), name=name
+    )
 
 
 def make_sun(direction, radiance, angular_radius: float = 0.00465) -> Sun:
@@ -66,7 +68,9 @@ def make_sun(direction, radiance, angular_radius: float = 0.00465) -> Sun:
     )
 
 
-def crease_normals(vertices: np.ndarray, faces: np.ndarray, crease_deg: float = CREASE_ANGLE_DEG) -> np.ndarray:
+def crease_normals(
+    vertices: np.ndarray, faces: np.ndarray, crease_deg: float = CREASE_ANGLE_DEG
+) -> np.ndarray:
     """Per-corner shading normals: area-weighted face normals averaged over the faces that share the
     vertex *and* lie within ``crease_deg`` of the corner's own face (so a box keeps flat faces while a
     tessellated column is smooth). Returns (n_tri, 3, 3) unit vectors.
@@ -132,13 +136,16 @@ def build_scene(
     if bad.any():
         first = int(np.flatnonzero(bad)[0])
         raise SceneError(
-            f"{source}: {int(bad.sum())} vertices are NaN or infinite (first: index {first}, {vertices[first]})"
+            f"{source}: {int(bad.sum())} vertices are NaN or infinite "
+            f"(first: index {first}, {vertices[first]})"
         )
     if faces.min() < 0 or faces.max() >= len(vertices):
         raise SceneError(f"{source}: face indices out of range [0, {len(vertices)})")
     tri_material = np.asarray(tri_material, np.int64).reshape(-1)
     if tri_material.shape[0] != faces.shape[0]:
-        raise SceneError(f"{source}: tri_material has {tri_material.shape[0]} rows for {faces.shape[0]} triangles")
+        raise SceneError(
+            f"{source}: tri_material has {tri_material.shape[0]} rows for {faces.shape[0]} triangles"
+        )
     if tri_material.min() < 0 or tri_material.max() >= len(materials.names):
         raise SceneError(f"{source}: material index out of range [0, {len(materials.names)})")
     tri_part = np.zeros(len(faces), np.int64) if tri_part is None else np.asarray(tri_part, np.int64)
@@ -154,7 +161,9 @@ def build_scene(
     if degenerate.all():
         raise SceneError(f"{source}: all {len(faces)} triangles are degenerate (zero area)")
     if degenerate.any():
-        log.warning("%s: dropped %d degenerate (zero-area) triangles of %d", source, int(degenerate.sum()), len(faces))
+        log.warning(
+            "%s: dropped %d degenerate (zero-area) triangles of %d", source, int(degenerate.sum()), len(faces)
+        )
         keep = ~degenerate
         faces, tri_material, tri_part = faces[keep], tri_material[keep], tri_part[keep]
 
