@@ -1,0 +1,1 @@
+"""Slow, obviously correct NumPy references used as test oracles."""
