@@ -8,6 +8,21 @@ from ._math import luminance as luminance
 from ._math import safe_norm as safe_norm
 from ._math import safe_normalize as safe_normalize
 from ._math import safe_sqrt as safe_sqrt
+
+# --- octahedral mapping ---
+from ._octahedral import add_border as add_border
+from ._octahedral import border_index as border_index
+from ._octahedral import jittered_texel_directions as jittered_texel_directions
+from ._octahedral import oct_decode as oct_decode
+from ._octahedral import oct_encode as oct_encode
+from ._octahedral import oct_wrap as oct_wrap
+from ._octahedral import sample_bilinear as sample_bilinear
+from ._octahedral import sample_nearest as sample_nearest
+from ._octahedral import strip_border as strip_border
+from ._octahedral import texel_directions as texel_directions
+from ._octahedral import texel_of_direction as texel_of_direction
+from ._octahedral import texel_solid_angles as texel_solid_angles
+from ._octahedral import texel_uv as texel_uv
 from ._types import Camera as Camera
 from ._types import Hit as Hit
 from ._types import LightFieldProbes as LightFieldProbes
