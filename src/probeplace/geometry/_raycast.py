@@ -85,11 +85,12 @@ def intersect_triangles(
     Returns (t, u, v) with ``t = inf`` where the ray misses (parallel, outside, or behind). Branch-free,
     so it vectorises; the divisions are guarded so no NaN appears for parallel rays.
     """
+    direction = jnp.broadcast_to(direction, e2.shape)  # explicit: tests run with strict rank promotion
     p = jnp.cross(direction, e2)
     det = jnp.sum(e1 * p, axis=-1)
     ok = jnp.abs(det) > jnp.finfo(det.dtype).tiny * 1e6
     inv = jnp.where(ok, 1.0 / jnp.where(ok, det, 1.0), 0.0)
-    s = origin - v0
+    s = origin[None, :] - v0
     u = jnp.sum(s * p, axis=-1) * inv
     q = jnp.cross(s, e1)
     v = jnp.sum(direction * q, axis=-1) * inv

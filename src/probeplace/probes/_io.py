@@ -1,0 +1,75 @@
+"""Save and load baked probes as one ``.npz`` (lossless: every leaf is stored with its dtype)."""
+
+from __future__ import annotations
+
+import os
+import tempfile
+import zipfile
+from pathlib import Path
+
+import jax.numpy as jnp
+import numpy as np
+
+from .._core import LightFieldProbes, ProbeplaceError
+
+_FORMAT = "probeplace.LightFieldProbes/1"
+_MAPS = (
+    "pos_world",
+    "active",
+    "inside",
+    "radiance",
+    "emission",
+    "normal",
+    "distance",
+    "irradiance",
+    "moments",
+)
+
+
+def save_probes(path: str | os.PathLike, probes: LightFieldProbes) -> Path:
+    """Write ``probes`` to ``path`` (.npz) atomically (a temporary file renamed into place)."""
+    path = Path(path)
+    arrays = {name: np.asarray(getattr(probes, name)) for name in _MAPS}
+    for i, (lo, hi) in enumerate(zip(probes.distance_min_mips, probes.distance_max_mips, strict=True)):
+        arrays[f"distance_min_mip{i + 1}"] = np.asarray(lo)
+        arrays[f"distance_max_mip{i + 1}"] = np.asarray(hi)
+    arrays["far"] = np.asarray(probes.far)
+    arrays["format"] = np.asarray(_FORMAT)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.", suffix=".tmp")
+    try:
+        with os.fdopen(fd, "wb") as f:
+            np.savez_compressed(f, **arrays)
+        os.replace(tmp, path)
+    except BaseException:
+        Path(tmp).unlink(missing_ok=True)
+        raise
+    return path
+
+
+def load_probes(path: str | os.PathLike) -> LightFieldProbes:
+    """Read probes written by :func:`save_probes`.
+
+    Raises:
+        ProbeplaceError: missing file, not an npz, or not a probe file.
+    """
+    path = Path(path)
+    if not path.is_file():
+        raise ProbeplaceError(f"probe file not found: {path}")
+    try:
+        with np.load(path, allow_pickle=False) as z:
+            data = {k: z[k] for k in z.files}
+    except (zipfile.BadZipFile, ValueError, OSError) as e:
+        raise ProbeplaceError(f"{path}: not a readable .npz probe file ({e})") from None
+    if str(data.get("format", "")) != _FORMAT:
+        raise ProbeplaceError(f"{path}: not a probeplace light-field probe file (format {_FORMAT} expected)")
+    missing = [k for k in (*_MAPS, "far") if k not in data]
+    if missing:
+        raise ProbeplaceError(f"{path}: probe file lacks {missing}")
+    n_mips = sum(1 for k in data if k.startswith("distance_min_mip"))
+    return LightFieldProbes(
+        **{k: jnp.asarray(data[k]) for k in _MAPS},
+        distance_min_mips=tuple(jnp.asarray(data[f"distance_min_mip{i + 1}"]) for i in range(n_mips)),
+        distance_max_mips=tuple(jnp.asarray(data[f"distance_max_mip{i + 1}"]) for i in range(n_mips)),
+        far=jnp.asarray(data["far"]),
+    )
