@@ -23,6 +23,12 @@ from ._octahedral import texel_directions as texel_directions
 from ._octahedral import texel_of_direction as texel_of_direction
 from ._octahedral import texel_solid_angles as texel_solid_angles
 from ._octahedral import texel_uv as texel_uv
+
+# --- ProbeSet files ---
+from ._probe_io import PROBE_SET_FORMAT as PROBE_SET_FORMAT
+from ._probe_io import load_probe_set as load_probe_set
+from ._probe_io import save_probe_set as save_probe_set
+from ._probe_io import write_json_atomic as write_json_atomic
 from ._types import Camera as Camera
 from ._types import Hit as Hit
 from ._types import LightFieldProbes as LightFieldProbes
