@@ -165,3 +165,23 @@ def test_nan_probe_position_is_a_clear_error(room, getkey):
             key=getkey(),
             config=BakeConfig(radiance_res=8, progress=False),
         )
+
+
+def test_contact_sheet_is_a_png_with_one_row_per_probe(room, tmp_path, getkey):
+    from PIL import Image
+
+    from probeplace.probes import save_contact_sheet
+
+    p = jnp.asarray([[2.0, 1.5, 2.5], [3.0, 2.0, 4.0]], jnp.float32)
+    lf = bake_probes(
+        room,
+        ProbeSet(pos_world=p, active=jnp.ones(2, bool)),
+        caster=BruteForceCaster(room),
+        radiance_fn=_constant_radiance(0.5),
+        key=getkey(),
+        config=BakeConfig(radiance_res=8, irradiance_res=4, moments_res=4, n_sub=1, progress=False),
+    )
+    out = save_contact_sheet(lf, tmp_path / "sheet.png")
+    with Image.open(out) as im:
+        w, h = im.size
+    assert w > h > 2 * 100  # six columns, two rows of ~190 px

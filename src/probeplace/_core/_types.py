@@ -201,8 +201,10 @@ class LightFieldProbes(eqx.Module):
         active: which probes are real (a ProbeSet's mask).
         inside: probes detected inside geometry at bake time (most first hits are back faces).
         radiance: radiance reflected toward the probe by the first surface hit in each texel's direction
-            (emission excluded: DESIGN.md "indirect means reflected"); sky radiance for rays that escape.
-        emission: radiance emitted toward the probe by that surface.
+            (direct + indirect, emission excluded: DESIGN.md "indirect means reflected"); zero where the
+            ray escapes.
+        emission: radiance emitted toward the probe by that surface, or the sky (and sun) radiance where
+            the ray escapes: what a camera at the probe would call "emission" (docs/render.md).
         normal: unit shading normal of that surface (zeros where the ray escapes).
         distance: radial distance to that surface; ``far`` where the ray escapes.
         irradiance: cosine-convolved irradiance E(n) for a receiver normal n = texel direction.

@@ -9,3 +9,4 @@ from ._filter import irradiance_map as irradiance_map
 from ._filter import mip_chains as mip_chains
 from ._io import load_probes as load_probes
 from ._io import save_probes as save_probes
+from ._plot import save_contact_sheet as save_contact_sheet
