@@ -23,6 +23,57 @@ def _cmd_demo(args: argparse.Namespace) -> int:
     return run_demo(out_dir=args.out)
 
 
+# --- export (issue 8) ---
+def _cmd_export(args: argparse.Namespace) -> int:
+    import dataclasses
+
+    from .export import export_probes, read_probes
+
+    probes = read_probes(args.probes, sh_source=args.sh_source)
+    if args.probe_set:  # method, units and config of the placement, for a baked .npz
+        placed = read_probes(args.probe_set)
+        if placed.n != probes.n:
+            raise ProbeplaceError(f"--probe-set has {placed.n} probes, {args.probes} has {probes.n}")
+        probes = dataclasses.replace(
+            probes, method=placed.method, units_m=placed.units_m, metadata=placed.metadata
+        )
+    opts: dict = {}
+    if args.format in ("gltf", "unity", "godot") and args.to_metres:
+        opts["to_metres"] = True
+    if args.format == "threev8":
+        opts["base_cells"] = args.base_cells
+    if args.format == "ddgi":
+        opts.update(irradiance_res=args.irradiance_res, distance_res=args.distance_res, light=args.sh_source)
+    for path in export_probes(probes, args.format, args.out, **opts):
+        print(path)
+    return 0
+
+
+def _add_export_parser(sub) -> None:
+    from .export._registry import FORMATS  # NumPy only: keeps `probeplace --help` light
+
+    e = sub.add_parser(
+        "export",
+        help="write a probe set to an engine format (docs/export.md)",
+        description="Export probes: " + "; ".join(f"{k}: {f.summary}" for k, f in FORMATS.items()),
+    )
+    e.add_argument("probes", help="ProbeSet .json (probeplace place), baked .npz, or an exported file")
+    e.add_argument("--format", required=True, choices=sorted(FORMATS), help="output format")
+    e.add_argument("--out", required=True, help="output file (ddgi: the .json sidecar)")
+    e.add_argument("--probe-set", help="ProbeSet .json giving method/units/config when PROBES is a .npz")
+    e.add_argument(
+        "--sh-source",
+        choices=("total", "reflected"),
+        default="total",
+        help="light in SH / DDGI irradiance from a .npz: reflected+emitted (total) or reflected only",
+    )
+    e.add_argument("--to-metres", action="store_true", help="gltf/unity/godot: root scale = units_m")
+    e.add_argument("--base-cells", type=int, default=2, help="threev8: base cells on the longest axis")
+    e.add_argument("--irradiance-res", type=int, default=6, help="ddgi: interior irradiance tile size")
+    e.add_argument("--distance-res", type=int, default=14, help="ddgi: interior distance tile size")
+    e.set_defaults(func=_cmd_export)
+
+
 def build_parser() -> argparse.ArgumentParser:
     p = argparse.ArgumentParser(prog="probeplace", description=__doc__)
     p.add_argument("-v", "--verbose", action="store_true", help="log at INFO level")
@@ -32,6 +83,7 @@ def build_parser() -> argparse.ArgumentParser:
     d = sub.add_parser("demo", help="run the default experiment on the built-in Cornell box")
     d.add_argument("--out", default="results/demo", help="output folder (default: results/demo)")
     d.set_defaults(func=_cmd_demo)
+    _add_export_parser(sub)
     return p
 
 

@@ -1,0 +1,76 @@
+"""Spherical harmonics L2 (9 coefficients per colour) in the three.js convention, in NumPy.
+
+Convention (the one three.js ``SphericalHarmonics3`` / ``LightProbe`` and Three.V8 use, so a
+coefficient array can be handed to them as is):
+
+* real SH basis with the usual normalisation (Ramamoorthi & Hanrahan 2001, "An Efficient
+  Representation for Irradiance Environment Maps", Eq. 3), evaluated on the world-frame unit
+  vector (x, y, z) (right-handed, +Y up), in the order
+  ``Y00, Y1-1 (y), Y10 (z), Y11 (x), Y2-2 (xy), Y2-1 (yz), Y20 (3z²-1), Y21 (xz), Y22 (x²-y²)``;
+* the coefficients c_lm are those of the incident **radiance** L(ω) = Σ c_lm Y_lm(ω);
+* irradiance at a receiver normal n is E(n) = Σ Â_l c_lm Y_lm(n) with Â₀ = π, Â₁ = 2π/3, Â₂ = π/4
+  (R&H 2001 Eq. 8-9), which is exactly three.js' ``shGetIrradianceAt`` (0.886227 = π·0.282095, …).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from ._octa import texel_directions, texel_solid_angles
+
+SH_ORDER = ("Y00", "Y1-1", "Y10", "Y11", "Y2-2", "Y2-1", "Y20", "Y21", "Y22")
+SH_CONVENTION = (
+    "three.js SphericalHarmonics3: real SH L2 coefficients of incident radiance in the world frame "
+    "(right-handed, +Y up), order Y00, Y1-1(y), Y10(z), Y11(x), Y2-2(xy), Y2-1(yz), Y20(3z^2-1), "
+    "Y21(xz), Y22(x^2-y^2); irradiance E(n) = sum_lm A_l c_lm Y_lm(n), A = (pi, 2pi/3, pi/4) "
+    "(three.js shGetIrradianceAt)"
+)
+# Â_l per coefficient (R&H 2001 Eq. 8-9).
+COSINE_LOBE = np.array([np.pi] + [2.0 * np.pi / 3.0] * 3 + [np.pi / 4.0] * 5)
+
+
+def sh_basis(directions: np.ndarray) -> np.ndarray:
+    """(..., 3) unit directions → (..., 9) real SH basis values (R&H 2001 Eq. 3 constants)."""
+    x, y, z = directions[..., 0], directions[..., 1], directions[..., 2]
+    return np.stack(
+        [
+            np.full_like(x, 0.282095),
+            0.488603 * y,
+            0.488603 * z,
+            0.488603 * x,
+            1.092548 * x * y,
+            1.092548 * y * z,
+            0.315392 * (3.0 * z * z - 1.0),
+            1.092548 * x * z,
+            0.546274 * (x * x - y * y),
+        ],
+        axis=-1,
+    )
+
+
+def project_radiance(bordered_radiance: np.ndarray) -> np.ndarray:
+    """Project bordered octahedral radiance maps onto SH L2: c_lm = Σ_texels L(ω) Y_lm(ω) Δω.
+
+    Args:
+        bordered_radiance: (P, R+2, R+2, 3) maps with the one-texel border (the LightFieldProbes layout).
+
+    Returns:
+        (P, 9, 3) float32 radiance coefficients (three.js convention, module docstring).
+    """
+    res = bordered_radiance.shape[-2] - 2
+    interior = np.asarray(bordered_radiance, np.float64)[:, 1:-1, 1:-1, :].reshape(-1, res * res, 3)
+    y = sh_basis(texel_directions(res).reshape(-1, 3))  # (K, 9)
+    w = texel_solid_angles(res).reshape(-1)
+    return np.einsum("k,kj,pkc->pjc", w, y, interior).astype(np.float32)
+
+
+def sh_irradiance(coeffs: np.ndarray, normals: np.ndarray) -> np.ndarray:
+    """Irradiance E(n) from (P, 9, 3) radiance coefficients at (K, 3) unit normals → (P, K, 3)."""
+    y = sh_basis(np.asarray(normals, np.float64)) * COSINE_LOBE  # (K, 9)
+    return np.einsum("kj,pjc->pkc", y, np.asarray(coeffs, np.float64))
+
+
+def sh_radiance(coeffs: np.ndarray, directions: np.ndarray) -> np.ndarray:
+    """Radiance L(ω) from (P, 9, 3) coefficients at (K, 3) unit directions → (P, K, 3)."""
+    y = sh_basis(np.asarray(directions, np.float64))
+    return np.einsum("kj,pjc->pkc", y, np.asarray(coeffs, np.float64))
