@@ -17,3 +17,11 @@ from ._sdf_build import default_voxel_size as default_voxel_size
 from ._sphere_trace import sphere_trace as sphere_trace
 from ._sphere_trace import trace_sdf_rays as trace_sdf_rays
 from ._visibility import soft_visibility as soft_visibility
+
+# --- exact ray casting backends ---
+# isort: split
+from ._casters import BRUTE_FORCE_MAX_TRIANGLES as BRUTE_FORCE_MAX_TRIANGLES
+from ._casters import BVHCaster as BVHCaster
+from ._casters import make_caster as make_caster
+from ._embree import EmbreeCaster as EmbreeCaster
+from ._embree import EmbreeUnavailableError as EmbreeUnavailableError

@@ -17,6 +17,7 @@ import abc
 import equinox as eqx
 import jax
 import jax.numpy as jnp
+import numpy as np
 from jaxtyping import Array, Bool, Float, Int
 
 from .._core import Hit, Scene, safe_normalize
@@ -59,9 +60,11 @@ def complete_hit(
     safe_tri = jnp.where(hit, tri, 0)
     corners = scene.vertices[scene.faces[safe_tri]]  # (n, 3, 3)
     geo = safe_normalize(jnp.cross(corners[:, 1] - corners[:, 0], corners[:, 2] - corners[:, 0]))
-    u, v = bary[:, 0:1], bary[:, 1:2]
     cn = scene.corner_normals[safe_tri]
+    u, v = bary[:, 0:1].astype(cn.dtype), bary[:, 1:2].astype(cn.dtype)
     shading = safe_normalize((1 - u - v) * cn[:, 0] + u * cn[:, 1] + v * cn[:, 2])
+    # normals come out in the rays' dtype (t's), whatever the scene's float width
+    geo, shading = geo.astype(t.dtype), shading.astype(t.dtype)
     zero = jnp.zeros_like(geo)
     return Hit(
         t=jnp.where(hit, t, jnp.inf),
@@ -101,52 +104,107 @@ def intersect_triangles(
 
 class BruteForceCaster(AbstractRayCaster):
     """Every ray against every triangle, in JAX. The fastest exact choice for tiny scenes (tens of
-    triangles: no traversal overhead, perfectly vectorised); quadratic, so refuse large scenes."""
+    triangles: no traversal overhead, perfectly vectorised); quadratic, so refuse large scenes.
+
+    Layout: rays as (n,) component arrays, and a running closest hit updated one triangle at a time
+    (a ``fori_loop`` over the triangles, 4 per iteration), each test a ray–plane distance plus two
+    precomputed barycentric planes (cheaper than Möller–Trumbore; see ``__init__``). The earlier vmapped
+    (n, n_tri, 3) formulation was ~6x slower on CPU and miscompiled on XLA:CPU for batches over ~512 rays
+    (render/_smallcast.py). Values are computed in the rays' dtype.
+    Ties (coplanar overlapping triangles at the same distance) go to the lower triangle id.
+    """
 
     scene: Scene
-    v0: Float[Array, "n_tri 3"]
-    e1: Float[Array, "n_tri 3"]
-    e2: Float[Array, "n_tri 3"]
-    chunk: int = eqx.field(static=True, default=16384)
+    planes: Float[Array, "12 n_tri"]
+    chunk: int = eqx.field(static=True, default=65536)
 
     MAX_TRIANGLES = 4096
+    UNROLL = 4  # triangles per fori_loop iteration
+    UNROLL_MAX = 0  # full unrolling compiles for ~15 s (36 triangles) and was not faster
 
-    def __init__(self, scene: Scene, chunk: int = 16384):
+    def __init__(self, scene: Scene, chunk: int = 65536):
         if scene.n_triangles > self.MAX_TRIANGLES:
             raise ValueError(
                 f"BruteForceCaster is for tiny scenes (≤ {self.MAX_TRIANGLES} triangles); "
                 f"{scene.name!r} has {scene.n_triangles}: use the 'bvh' or 'embree' backend"
             )
-        tri = scene.vertices[scene.faces]
+        if chunk < 1:
+            raise ValueError(f"chunk must be >= 1, got {chunk}")
+        # Per triangle, in float64 on the host: v0, the (unnormalised) normal n = e1 × e2 and the two
+        # "barycentric planes" A = (e2 × n)/|n|², B = (n × e1)/|n|², for which (p − v0)·A = u and
+        # (p − v0)·B = v for any point p = v0 + u·e1 + v·e2 of the triangle's plane (Baldwin & Weber
+        # 2016, "Fast ray-triangle intersections by coordinate transformation", JCGT 5(3), precompute
+        # the same affine map). Degenerate triangles get NaN planes and are never hit.
+        tri = np.asarray(scene.vertices, np.float64)[np.asarray(scene.faces)]
+        v0 = tri[:, 0]
+        e1, e2 = tri[:, 1] - v0, tri[:, 2] - v0
+        n = np.cross(e1, e2)
+        with np.errstate(divide="ignore", invalid="ignore"):
+            nn = np.sum(n * n, axis=1, keepdims=True)
+            a, b = np.cross(e2, n) / nn, np.cross(n, e1) / nn
         self.scene = scene
-        self.v0 = tri[:, 0]
-        self.e1 = tri[:, 1] - tri[:, 0]
-        self.e2 = tri[:, 2] - tri[:, 0]
+        self.planes = jnp.asarray(np.concatenate([v0, n, a, b], axis=1).T, scene.vertices.dtype)
         self.chunk = chunk
 
-    def _one(self, origin, direction, t_max):
-        t, u, v = intersect_triangles(origin, direction, self.v0, self.e1, self.e2)
-        t = jnp.where(t < t_max, t, jnp.inf)
-        i = jnp.argmin(t)
-        return t[i], jnp.where(jnp.isfinite(t[i]), i, -1).astype(jnp.int32), jnp.stack([u[i], v[i]])
+    def _scan(self, o, d, t_max, any_hit):
+        """Closest (t, tri, u, v) for rays given as component tuples o = (ox, oy, oz), d, each (m,)."""
+        dtype = o[0].dtype
+        pl = self.planes.astype(dtype)
+        n_tri = pl.shape[1]
+
+        def update(i, best):
+            tb, tr, bu, bv = best
+            # s = v0 − o; t = (s·n)/(d·n) (ray–plane); w = p − v0 = t·d − s; u = w·A, v = w·B. About 18
+            # multiply-adds and a division per pair, against 27 for Möller–Trumbore (1.9x measured here).
+            sx, sy, sz = pl[0, i] - o[0], pl[1, i] - o[1], pl[2, i] - o[2]
+            den = d[0] * pl[3, i] + d[1] * pl[4, i] + d[2] * pl[5, i]
+            t = (sx * pl[3, i] + sy * pl[4, i] + sz * pl[5, i]) / den  # den = 0: inf/NaN, never accepted
+            wx, wy, wz = t * d[0] - sx, t * d[1] - sy, t * d[2] - sz
+            u = wx * pl[6, i] + wy * pl[7, i] + wz * pl[8, i]
+            v = wx * pl[9, i] + wy * pl[10, i] + wz * pl[11, i]
+            better = (u >= 0) & (v >= 0) & (u + v <= 1) & (t > 0) & (t < tb)
+            return (
+                jnp.where(better, t, tb),
+                jnp.where(better, jnp.asarray(i, jnp.int32), tr),
+                jnp.where(better, u, bu),
+                jnp.where(better, v, bv),
+            )
+
+        z = jnp.zeros_like(o[0])
+        best = (t_max, jnp.full(z.shape, -1, jnp.int32), z, z)
+        if n_tri <= self.UNROLL_MAX:
+            for i in range(n_tri):
+                best = update(i, best)
+        else:
+            best = jax.lax.fori_loop(0, n_tri, update, best, unroll=self.UNROLL)
+        tb, tr, bu, bv = best
+        return jnp.where(tr >= 0, tb, jnp.inf), tr, bu, bv
+
+    def _trace(self, origins, directions, t_max, any_hit=False):
+        if origins.ndim != 2 or origins.shape[-1] != 3 or directions.shape != origins.shape:
+            raise ValueError(
+                f"origins and directions must both be (n_rays, 3), got {origins.shape} and {directions.shape}"
+            )
+        n = origins.shape[0]
+        dtype = origins.dtype
+        t_max = jnp.broadcast_to(jnp.asarray(t_max, dtype), (n,))
+        c = max(1, min(self.chunk, n))
+        pad = (-n) % c
+        o = jnp.pad(origins, ((0, pad), (0, 0))).T.reshape(3, -1, c)
+        d = jnp.pad(directions.astype(dtype), ((0, pad), (0, 0))).T.reshape(3, -1, c)
+        tm = jnp.pad(t_max, (0, pad)).reshape(-1, c)
+        out = jax.lax.map(
+            lambda a: self._scan(tuple(a[0]), tuple(a[1]), a[2], any_hit),
+            (o.swapaxes(0, 1), d.swapaxes(0, 1), tm),
+        )
+        return tuple(x.reshape(-1)[:n] for x in out)
 
     @eqx.filter_jit
     def closest_hit(self, origins, directions, t_max=jnp.inf):
-        n = origins.shape[0]
-        t_max = jnp.broadcast_to(jnp.asarray(t_max, origins.dtype), (n,))
-        t, tri, bary = jax.lax.map(
-            lambda a: self._one(*a), (origins, directions, t_max), batch_size=min(self.chunk, max(n, 1))
-        )
-        return complete_hit(self.scene, t, tri, bary)
+        t, tri, u, v = self._trace(origins, directions, t_max)
+        return complete_hit(self.scene, t, tri, jnp.stack([u, v], axis=1))
 
     @eqx.filter_jit
     def occluded(self, origins, directions, t_max):
-        n = origins.shape[0]
-        t_max = jnp.broadcast_to(jnp.asarray(t_max, origins.dtype), (n,))
-
-        def one(a):
-            o, d, tm = a
-            t, _, _ = intersect_triangles(o, d, self.v0, self.e1, self.e2)
-            return jnp.any(t < tm)
-
-        return jax.lax.map(one, (origins, directions, t_max), batch_size=min(self.chunk, max(n, 1)))
+        _, tri, _, _ = self._trace(origins, directions, t_max, any_hit=True)
+        return tri >= 0

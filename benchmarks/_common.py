@@ -1,0 +1,62 @@
+"""Shared benchmark helpers: timing medians, atomic JSON results, scene search path, environment info."""
+
+from __future__ import annotations
+
+import json
+import os
+import platform
+import statistics
+import tempfile
+import time
+from collections.abc import Callable
+from pathlib import Path
+
+import jax
+
+ROOT = Path(__file__).resolve().parent
+RESULTS = ROOT / "results"
+
+
+def setup_scene_path() -> None:
+    """Put ../shared/scenes (beside the checkout) on PROBEPLACE_SCENE_PATH when it exists."""
+    shared = ROOT.parent.parent / "shared" / "scenes"
+    if shared.is_dir():
+        cur = os.environ.get("PROBEPLACE_SCENE_PATH", "")
+        if str(shared) not in cur.split(os.pathsep):
+            os.environ["PROBEPLACE_SCENE_PATH"] = os.pathsep.join(p for p in (cur, str(shared)) if p)
+
+
+def timed(fn: Callable[[], object]) -> tuple[float, object]:
+    """(seconds, result) of one call, blocking on JAX results."""
+    t0 = time.perf_counter()
+    out = jax.block_until_ready(fn())
+    return time.perf_counter() - t0, out
+
+
+def median_time(fn: Callable[[], object], repeats: int = 5) -> float:
+    """Median wall time of ``repeats`` calls (after none: warm up yourself)."""
+    return statistics.median(timed(fn)[0] for _ in range(repeats))
+
+
+def env_info() -> dict:
+    """Device kind, versions and CPU count, written beside every figure."""
+    dev = jax.devices()[0]
+    return {
+        "device": getattr(dev, "device_kind", str(dev)),
+        "platform": dev.platform,
+        "jax": jax.__version__,
+        "python": platform.python_version(),
+        "cpu_count": os.cpu_count(),
+    }
+
+
+def write_result(name: str, result: dict) -> Path:
+    """Write ``results/<name>.json`` atomically (tmp file + os.replace) and print it as the last line."""
+    RESULTS.mkdir(parents=True, exist_ok=True)
+    path = RESULTS / f"{name}.json"
+    fd, tmp = tempfile.mkstemp(dir=RESULTS, prefix=f".{name}.", suffix=".json")
+    with os.fdopen(fd, "w") as f:
+        json.dump(result, f, indent=2, sort_keys=True)
+    os.replace(tmp, path)
+    print(json.dumps(result, sort_keys=True), flush=True)
+    return path
