@@ -46,6 +46,39 @@ log = logging.getLogger(__name__)
 RadianceFn = Callable[[Float[Array, "n 3"], Float[Array, "n 3"], jax.Array], tuple[Array, Array]]
 
 
+def path_traced_radiance(
+    scene: Scene,
+    *,
+    spp: int = 16,
+    max_depth: int = 8,
+    specular: float = 1.0,
+    caster=None,
+) -> RadianceFn:
+    """The reference path tracer as a :data:`RadianceFn`: ``render.trace_rays`` split into reflected
+    (direct + diffuse indirect + glossy indirect) and emitted (emission, sky) radiance.
+
+    ``spp`` paths per ray; with ``n_sub``² jittered rays per texel a texel averages ``spp·n_sub²`` paths.
+    Each call uses a fresh random stream from its key, so batches are independent.
+    """
+    from ..render import trace_rays
+
+    def fn(origins, directions, key):
+        r = trace_rays(
+            scene,
+            origins,
+            directions,
+            spp=spp,
+            key=key,
+            max_depth=max_depth,
+            specular=specular,
+            caster=caster,
+        )
+        emitted = r.component("emission")
+        return r.component("full") - emitted, emitted
+
+    return fn
+
+
 def _is_pow2(n: int) -> bool:
     return n >= 1 and (n & (n - 1)) == 0
 
