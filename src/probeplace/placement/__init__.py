@@ -1,1 +1,33 @@
-"""placement stage (see DESIGN.md)."""
+"""Placement stage (DESIGN.md): fitness (Wang 2019 Eq. 1–2, union coverage), skeleton seeds, refiners,
+automatic budget, and ``place``. See docs/placement.md."""
+
+from ._auto import AutoResult as AutoResult
+from ._auto import auto_budget as auto_budget
+from ._field import tighten_sdf as tighten_sdf
+from ._fitness import FitnessConfig as FitnessConfig
+from ._fitness import PlacementProblem as PlacementProblem
+from ._fitness import binary_coverage as binary_coverage
+from ._fitness import binary_visibility as binary_visibility
+from ._fitness import coverage_objective as coverage_objective
+from ._fitness import make_problem as make_problem
+from ._fitness import probe_clearance as probe_clearance
+from ._fitness import probe_column as probe_column
+from ._fitness import wang_fitness as wang_fitness
+from ._fitness import wang_fitness_binary as wang_fitness_binary
+from ._fitness import witness_positions as witness_positions
+from ._grid import grid_dims as grid_dims
+from ._grid import uniform_grid as uniform_grid
+from ._place import METHODS as METHODS
+from ._place import place as place
+from ._place import save_top_view as save_top_view
+from ._place import smallest_full_grid as smallest_full_grid
+from ._refine import REFINERS as REFINERS
+from ._refine import AbstractRefiner as AbstractRefiner
+from ._refine import GibbsRefiner as GibbsRefiner
+from ._refine import RefineResult as RefineResult
+from ._refine import get_refiner as get_refiner
+from ._refine import objective_fn as objective_fn
+from ._refine import stochastic_direction as stochastic_direction
+from ._seeds import medial_axis_seeds as medial_axis_seeds
+from ._seeds import shrink_balls as shrink_balls
+from ._seeds import skeleton_seeds as skeleton_seeds

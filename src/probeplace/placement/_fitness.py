@@ -1,0 +1,492 @@
+"""Placement fitness: Wang et al. 2019 Eq. 1–2 and a union-coverage objective, soft and binary.
+
+The "global visibility atlas" of Wang §3.2 is, here, the scene's area-stratified surface samples
+(:func:`probeplace.geometry.sample_surface`): sample i stands for a patch of area aᵢ with normal nᵢ.
+
+**Visibility as the probe's octahedral map decides it.** A probe at p stores, per texel of an R×R
+octahedral map, the distance to the first surface in that texel's direction. Sample x (distance
+d = |x − p|) is in the map when the first surface along p→x is no nearer than d − tol, with tol the
+texel footprint at distance d: tol = max(2h, d·θ/2), θ = √(4π)/R the mean angular texel width (R² texels
+share 4π sr) and h the SDF voxel (the tracer's own resolution). A sample must also face the probe
+(−ω·n > 0: a probe behind a one-sided wall sees its back, which is another atlas texel in Wang's
+setting); ``two_sided`` drops that test. A probe inside a solid sees nothing.
+
+* binary V: the SDF sphere tracer (:func:`probeplace.geometry.trace_sdf_rays`) or an exact caster;
+* soft V: the minimum-clearance soft visibility of :func:`probeplace.geometry.soft_visibility`
+  (σ((minᵢ cᵢ − τ)/s), cᵢ = (f(tᵢ) + f(tᵢ₊₁) − Δᵢ)/2 a Lipschitz lower bound of the clearance of each
+  interval), evaluated here on the segment from the probe to the sample *lifted* by ε = τ + 3s along its
+  normal, with intervals growing geometrically away from the sample (tᵢ ∝ e^{βi/(N−1)} − 1, β = 4). Evenly
+  spaced points read every segment that ends on a surface at less than ~45° as mostly blocked (the bound
+  needs f(tᵢ) + f(tᵢ₊₁) > Δ + 2τ while f ≈ t·cos near the end); fine intervals near the sample and the lift
+  make an unblocked sample read ≈ σ(3) ≈ 0.95 instead. Times a logistic facing weight σ(−ω·n/κ).
+  Differentiable in the probe position.
+
+**Wang's fitness (Eq. 1–2)**, literally: R(P) = Σᵢ πᵢ, πᵢ = Σₖ (w₁ Ω̄ᵢₖ + w₂ d̄ₖ) Vᵢₖ with
+Ω̄ᵢₖ = −ωᵢₖ·nᵢ (ω the direction from probe k to sample i) and d̄ₖ = Σ_ω |p̄ₖ − p(ω)| the distances to the
+surfaces probe k sees over a subsampled set of its octahedral directions (Wang §3.3 subsamples ω too).
+Two normalisations, both constant factors absorbed into w₁, w₂: the texel sum Σᵢ becomes the
+area-weighted sum Σᵢ aᵢ/A (Wang's atlas texels have about equal area; our samples carry their area), and
+d̄ₖ is the *mean* over the N_ω directions divided by the scene diagonal L (escaping rays count L), so w₂
+is dimensionless and does not depend on N_ω.
+
+**Union coverage**: C(P) = Σᵢ aᵢ/A · (1 − Πₖ (1 − Vᵢₖ)), a noisy-OR: a sample seen by three probes is
+not three times as covered (DESIGN.md), and C ∈ [0, 1] is the soft share of area seen.
+
+Samples that no feasible probe can see head-on (the floor under a block, a block's underside, a flat roof
+at the top of the box, the inside of slits thinner than the probe clearance) are *not coverable*
+(:func:`coverable_mask`). Their weight is zero in both objectives and they are left out of coverage
+(:attr:`PlacementProblem.coverable`).
+"""
+
+from __future__ import annotations
+
+import math
+
+import equinox as eqx
+import jax
+import jax.numpy as jnp
+import numpy as np
+from jaxtyping import Array, Bool, Float
+
+from .._core import ConfigError, Scene, safe_norm, texel_directions
+from ..geometry import (
+    SDFGrid,
+    SurfaceSamples,
+    build_sdf,
+    sample_surface,
+    sdf_value,
+    sphere_trace,
+    trace_sdf_rays,
+)
+from ._field import tighten_sdf
+
+
+class FitnessConfig(eqx.Module):
+    """Parameters of the fitness (see the module docstring).
+
+    Attributes:
+        w1: weight of the solid-angle term Ω̄ = −ω·n (Wang Eq. 2).
+        w2: weight of the distance term d̄ (Wang Eq. 2; normalised by the scene diagonal).
+        map_res: octahedral map resolution R deciding visibility (static).
+        sharpness_voxels: soft-visibility transition width s, in SDF voxels.
+        n_steps: samples along each probe→sample segment for soft visibility (static).
+        facing_softness: κ of the logistic facing weight σ(−ω·n/κ).
+        two_sided: samples are seen from both sides (static).
+        dist_dir_res: the distance term traces the texel centres of a map of this resolution (static).
+        clearance_voxels: a probe position is feasible when its SDF value is at least this many voxels.
+    """
+
+    w1: float = 1.0
+    w2: float = 1.0
+    map_res: int = eqx.field(static=True, default=64)
+    sharpness_voxels: float = 0.5
+    n_steps: int = eqx.field(static=True, default=32)
+    facing_softness: float = 0.1
+    two_sided: bool = eqx.field(static=True, default=False)
+    dist_dir_res: int = eqx.field(static=True, default=6)
+    clearance_voxels: float = 2.0
+
+    def __check_init__(self):
+        for name in ("sharpness_voxels", "facing_softness", "clearance_voxels"):
+            v = getattr(self, name)
+            if not (isinstance(v, int | float) and math.isfinite(v) and v > 0):
+                raise ConfigError(f"FitnessConfig.{name} must be a positive number, got {v!r}")
+        for name in ("w1", "w2"):
+            v = getattr(self, name)
+            if not (isinstance(v, int | float) and math.isfinite(v) and v >= 0):
+                raise ConfigError(f"FitnessConfig.{name} must be a non-negative number, got {v!r}")
+        if self.map_res < 1 or self.n_steps < 2 or self.dist_dir_res < 1:
+            raise ConfigError("FitnessConfig: map_res ≥ 1, n_steps ≥ 2 and dist_dir_res ≥ 1 are required")
+
+
+class PlacementProblem(eqx.Module):
+    """Everything the fitness needs, fixed for a run (the *model*, STYLE §2).
+
+    Attributes:
+        grid: the scene's SDF.
+        position, normal: the surface samples (the atlas), world frame.
+        weight: aᵢ/A over coverable samples (zero for the others); sums to 1.
+        coverable: whether a probe inside the box can see the sample at all (module docstring).
+        lo, hi: the placement box (the scene bounds), world frame.
+        dist_dirs: unit directions the distance term traces from each probe.
+        diag: scene diagonal L, scene units.
+        config: the fitness parameters.
+    """
+
+    grid: SDFGrid
+    position: Float[Array, "n 3"]
+    normal: Float[Array, "n 3"]
+    weight: Float[Array, " n"]
+    area: Float[Array, " n"]
+    coverable: Bool[Array, " n"]
+    lo: Float[Array, "3"]
+    hi: Float[Array, "3"]
+    dist_dirs: Float[Array, "n_dir 3"]
+    diag: Float[Array, ""]
+    config: FitnessConfig
+
+    @property
+    def n_samples(self) -> int:
+        return int(self.position.shape[0])
+
+    @property
+    def voxel(self) -> Float[Array, ""]:
+        return self.grid.voxel_size.astype(self.position.dtype)
+
+    @property
+    def thickness(self) -> Float[Array, ""]:
+        """τ: the interpolated field's largest value on a one-sided sheet, h√3/2 (docs/sdf.md)."""
+        return self.voxel * (math.sqrt(3.0) / 2.0)
+
+    @property
+    def lift(self) -> Float[Array, ""]:
+        """ε = τ + 3s: how far soft visibility lifts a sample off its surface."""
+        return self.thickness + 3.0 * self.config.sharpness_voxels * self.voxel
+
+    @property
+    def clearance(self) -> Float[Array, ""]:
+        """Smallest feasible probe-to-surface distance, scene units."""
+        return self.config.clearance_voxels * self.voxel
+
+
+def _normal_march(grid: SDFGrid, lo, hi, clearance: float, diag: float, position, normal):
+    """Per sample: whether a feasible probe sees it head-on, and the deepest such point on its normal."""
+    h = float(grid.voxel_size)
+    t = np.geomspace(2.0 * h, max(0.5 * diag, 4.0 * h), 40).astype(np.float32)
+    tau = h * math.sqrt(3.0) / 2.0
+    tt = jnp.asarray(t)
+    dt = jnp.asarray(np.diff(t))
+
+    def one(x, n):
+        q = x[None, :] + tt[:, None] * n[None, :]
+        f = jax.vmap(lambda y: sdf_value(grid, y))(q)
+        in_box = jnp.all((q >= lo[None]) & (q <= hi[None]), axis=-1)
+        # An interval is clear when the Lipschitz bound (f_i + f_{i+1} − Δ_i)/2 stays above τ = h√3/2 (the
+        # most a one-sided sheet reads after interpolation); the first 2h are forgiven as in
+        # binary_visibility.
+        seg_ok = jnp.concatenate([f[:1] > tau, (f[:-1] + f[1:] - dt) > 2.0 * tau])
+        clear_so_far = jnp.cumprod(seg_ok.astype(jnp.int32)) > 0
+        ok = clear_so_far & in_box & (f >= clearance)
+        best = jnp.argmax(jnp.where(ok, f, -jnp.inf))
+        return jnp.any(ok), q[best]
+
+    return jax.lax.map(lambda xn: one(*xn), (position, normal), batch_size=4096)
+
+
+def coverable_mask(
+    grid: SDFGrid, samples: SurfaceSamples, lo: Array, hi: Array, clearance: float, diag: float
+) -> np.ndarray:
+    """Samples some feasible probe can see head-on (module docstring).
+
+    Sample x is coverable when, marching along its normal n, the segment x + t·n (t from 2h to L/2,
+    40 geometric steps, each interval cleared by the Lipschitz bound (f_i + f_{i+1} − Δ_i)/2 > τ) stays in
+    free
+    space up to a t where the point is inside the box [lo, hi] and at
+    least ``clearance`` from every surface: a probe there sees x along −n. This excludes the floor under
+    a block, a block's underside, a flat roof at the top of the box and slits thinner than the probe
+    clearance (the gap between a pillar and the roof above it).
+    """
+    ok, _ = _normal_march(grid, lo, hi, clearance, diag, samples.position, samples.normal)
+    return np.asarray(ok)
+
+
+def witness_positions(problem: PlacementProblem, idx: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """For samples ``idx``: (has a witness, the deepest feasible point on the normal that sees it head-on)."""
+    ok, q = _normal_march(
+        problem.grid,
+        problem.lo,
+        problem.hi,
+        float(problem.clearance),
+        float(problem.diag),
+        problem.position[idx],
+        problem.normal[idx],
+    )
+    return np.asarray(ok), np.asarray(q, np.float32)
+
+
+def make_problem(
+    scene: Scene,
+    *,
+    key: jax.Array,
+    grid: SDFGrid | None = None,
+    samples: SurfaceSamples | None = None,
+    n_samples: int | None = None,
+    config: FitnessConfig | None = None,
+    cache_dir=None,
+) -> PlacementProblem:
+    """Build the fitness model of a scene (host work: SDF build, surface samples, coverable mask).
+
+    Args:
+        scene: the scene; the placement box is its bounds.
+        key: PRNG key for the surface samples.
+        grid: the SDF; built (and cached) with default resolution when ``None``. Its far field is raised
+            with :func:`tighten_sdf` either way.
+        samples: the atlas; when ``None`` drawn at the default density, or at about ``n_samples`` samples
+            (area-stratified at spacing √(A/n_samples)) — optimisation uses a few thousand.
+        n_samples: see ``samples``.
+        config: fitness parameters.
+        cache_dir: passed to :func:`probeplace.geometry.build_sdf`.
+
+    Raises:
+        ConfigError: ``n_samples`` not positive.
+    """
+    config = FitnessConfig() if config is None else config
+    if grid is None:
+        grid = build_sdf(scene) if cache_dir is None else build_sdf(scene, cache_dir=cache_dir)
+    grid, _ = tighten_sdf(grid)
+    if samples is None:
+        spacing = None
+        if n_samples is not None:
+            if n_samples < 1:
+                raise ConfigError(f"n_samples must be positive, got {n_samples}")
+            tri = np.asarray(scene.vertices, np.float64)[np.asarray(scene.faces)]
+            area = 0.5 * np.linalg.norm(np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0]), axis=1).sum()
+            spacing = float(np.sqrt(area / n_samples))
+        samples = sample_surface(scene, key=key, spacing=spacing)
+    lo, hi = scene.bounds[0], scene.bounds[1]
+    diag = float(np.linalg.norm(np.asarray(hi) - np.asarray(lo)))
+    clearance = config.clearance_voxels * float(grid.voxel_size)
+    cov = coverable_mask(grid, samples, lo, hi, clearance, diag)
+    if config.two_sided:
+        back = SurfaceSamples(samples.position, -samples.normal, samples.area, samples.material, samples.tri)
+        cov = cov | coverable_mask(grid, back, lo, hi, clearance, diag)
+    area = np.asarray(samples.area, np.float64)
+    w = np.where(cov, area, 0.0)
+    w = w / max(w.sum(), 1e-300)
+    dirs = texel_directions(config.dist_dir_res).reshape(-1, 3)
+    return PlacementProblem(
+        grid=grid,
+        position=samples.position,
+        normal=samples.normal,
+        weight=jnp.asarray(w, jnp.float32),
+        area=samples.area,
+        coverable=jnp.asarray(cov),
+        lo=jnp.asarray(lo, jnp.float32),
+        hi=jnp.asarray(hi, jnp.float32),
+        dist_dirs=dirs,
+        diag=jnp.asarray(np.linalg.norm(np.asarray(hi) - np.asarray(lo)), jnp.float32),
+        config=config,
+    )
+
+
+def _texel_angle(res: int) -> float:
+    """Mean angular width of a texel of an R×R octahedral map: √(4π/R²)."""
+    return math.sqrt(4.0 * math.pi) / res
+
+
+def _tolerance(problem: PlacementProblem, d: Array) -> Array:
+    """Texel footprint at distance d, never below 2 voxels (module docstring)."""
+    h = problem.voxel.astype(d.dtype)
+    return jnp.maximum(2.0 * h, d * (_texel_angle(problem.config.map_res) / 2.0))
+
+
+class ProbeColumn(eqx.Module):
+    """One probe's view of the atlas: soft visibility Vᵢ (facing included) and Ω̄ᵢ = −ωᵢ·nᵢ."""
+
+    vis: Float[Array, " n"]
+    omega: Float[Array, " n"]
+
+
+_BETA = 4.0  # geometric growth of the soft-visibility intervals away from the sample
+
+
+def _segment_visibility(problem: PlacementProblem, p: Array, target: Array, skip: Array) -> Array:
+    """Soft visibility of ``target`` from ``p`` (module docstring); ``skip`` is dropped at the target end."""
+    cfg = problem.config
+    dtype = p.dtype
+    h = problem.voxel.astype(dtype)
+    s = cfg.sharpness_voxels * h
+    tau = problem.thickness.astype(dtype)
+    seg = p - target  # from the sample toward the probe
+    length = safe_norm(seg)
+    inner = length - skip - 2.0 * h  # the probe end keeps a 2h margin like soft_visibility
+    ok = inner > 0
+    inner_safe = jnp.where(ok, inner, 1.0)
+    length_safe = jnp.where(ok, length, 1.0)
+    k = jnp.arange(cfg.n_steps, dtype=dtype) / (cfg.n_steps - 1)
+    frac = jnp.expm1(_BETA * k) / math.expm1(_BETA)
+    t = skip + inner_safe * frac
+    pts = target[None, :] + (t / length_safe)[:, None] * seg[None, :]
+    f = jax.vmap(lambda q: sdf_value(problem.grid, q))(pts)
+    c = (f[:-1] + f[1:] - (t[1:] - t[:-1])) / 2.0
+    v = jax.nn.sigmoid((jnp.min(c) - tau) / s)
+    return jnp.where(ok, v, jnp.ones((), dtype))
+
+
+def probe_column(problem: PlacementProblem, p: Float[Array, "3"]) -> ProbeColumn:
+    """Soft visibility of every sample from ONE probe at ``p`` (differentiable in ``p``)."""
+    cfg = problem.config
+    dtype = p.dtype
+    x = problem.position.astype(dtype)
+    n = problem.normal.astype(dtype)
+    h = problem.voxel.astype(dtype)
+    v = x - p[None, :]
+    d = safe_norm(v)
+    d_safe = jnp.where(d > 0, d, 1.0)
+    omega_dir = v / d_safe[:, None]  # ω: probe → sample
+    cos = -jnp.sum(omega_dir * n, axis=-1)  # Wang's Ω̄ = −ω·n
+    tol = _tolerance(problem, d)
+    lift = problem.lift.astype(dtype)
+    side = jnp.sign(cos) if cfg.two_sided else jnp.ones_like(cos)
+    # The target is lifted off the surface by ε along the (probe-side) normal, then pulled back toward
+    # the probe by the rest of the texel footprint: see _segment_visibility.
+    target = x + (side * lift)[:, None] * n
+    vis = jax.vmap(lambda xx, tt: _segment_visibility(problem, p, xx, tt))(
+        target, jnp.maximum(tol - lift, 0.0)
+    )
+    kappa = jnp.asarray(cfg.facing_softness, dtype)
+    if cfg.two_sided:
+        omega = jnp.sqrt(cos * cos + jnp.asarray(1e-12, dtype))
+    else:
+        vis = vis * jax.nn.sigmoid(cos / kappa)
+        omega = cos
+    # A probe inside a solid sees nothing: its own clearance gates every sample.
+    inside = jax.nn.sigmoid(sdf_value(problem.grid, p) / (cfg.sharpness_voxels * h))
+    return ProbeColumn(vis=vis * inside, omega=omega)
+
+
+def probe_distance_term(problem: PlacementProblem, p: Float[Array, "3"]) -> Float[Array, ""]:
+    """d̄ of ONE probe: mean over the subsampled directions of the distance to the first surface / L.
+
+    Differentiable in ``p`` through the sphere tracer's implicit hit-distance gradient.
+    """
+    dtype = p.dtype
+    diag = problem.diag.astype(dtype)
+    dirs = problem.dist_dirs.astype(dtype)
+    t, hit = jax.vmap(lambda w: sphere_trace(problem.grid, p, w, diag))(dirs)
+    t = jnp.where(hit, jnp.minimum(t, diag), diag)
+    return jnp.mean(t) / diag
+
+
+def wang_from_columns(
+    problem: PlacementProblem, vis: Array, omega: Array, dbar: Array, active: Array
+) -> Float[Array, ""]:
+    """Eq. 1–2 from per-probe columns: Σᵢ aᵢ Σₖ (w₁ Ω̄ᵢₖ + w₂ d̄ₖ) Vᵢₖ (inactive probes excluded)."""
+    cfg = problem.config
+    dtype = vis.dtype
+    w = problem.weight.astype(dtype)
+    term = (cfg.w1 * omega + cfg.w2 * dbar[:, None]) * vis  # (n_probes, n)
+    term = jnp.where(active[:, None], term, 0.0)
+    return jnp.sum(term @ w)
+
+
+def coverage_from_columns(problem: PlacementProblem, vis: Array, active: Array) -> Float[Array, ""]:
+    """Union coverage Σᵢ aᵢ (1 − Πₖ (1 − Vᵢₖ)) from per-probe columns."""
+    q = jnp.where(active[:, None], vis, 0.0)
+    miss = jnp.prod(1.0 - q, axis=0)
+    return jnp.sum(problem.weight.astype(vis.dtype) * (1.0 - miss))
+
+
+def _columns(problem: PlacementProblem, pos: Array) -> ProbeColumn:
+    return jax.vmap(lambda p: probe_column(problem, p))(pos)
+
+
+def wang_fitness(
+    problem: PlacementProblem, pos: Float[Array, "n_probes 3"], active: Bool[Array, " n_probes"] | None = None
+) -> Float[Array, ""]:
+    """Wang et al. 2019 Eq. 1–2 with soft visibility (module docstring); differentiable in ``pos``."""
+    active = jnp.ones(pos.shape[0], bool) if active is None else active
+    col = _columns(problem, pos)
+    dbar = jax.vmap(lambda p: probe_distance_term(problem, p))(pos)
+    return wang_from_columns(problem, col.vis, col.omega, dbar, active)
+
+
+def coverage_objective(
+    problem: PlacementProblem, pos: Float[Array, "n_probes 3"], active: Bool[Array, " n_probes"] | None = None
+) -> Float[Array, ""]:
+    """Soft union coverage in [0, 1] (module docstring); differentiable in ``pos``."""
+    active = jnp.ones(pos.shape[0], bool) if active is None else active
+    return coverage_from_columns(problem, _columns(problem, pos).vis, active)
+
+
+# ----------------------------------------------------------------------------------------------------
+# Binary versions (reporting)
+
+_CHUNK = 1 << 16
+
+
+def binary_visibility(problem: PlacementProblem, pos, *, caster=None) -> np.ndarray:
+    """Binary visibility (n_probes, n_samples) as the probes' octahedral maps decide it (module docstring).
+
+    Args:
+        problem: the fitness model.
+        pos: probe positions (n_probes, 3), host or device array.
+        caster: optional exact ray caster (``geometry`` :class:`AbstractRayCaster`); default the SDF tracer.
+
+    Returns:
+        Host boolean array; coverable-ness is not applied (use :func:`binary_coverage`).
+    """
+    pos = np.asarray(pos, np.float32).reshape(-1, 3)
+    x = np.asarray(problem.position, np.float32)
+    nrm = np.asarray(problem.normal, np.float32)
+    h = float(problem.voxel)
+    theta = _texel_angle(problem.config.map_res)
+    out = np.zeros((len(pos), len(x)), bool)
+    if len(pos) == 0:
+        return out
+    inside = np.asarray(jax.vmap(lambda p: sdf_value(problem.grid, p))(jnp.asarray(pos))) <= 0.0
+    for k in range(len(pos)):
+        if inside[k]:
+            continue
+        v = x - pos[k][None]
+        d = np.linalg.norm(v, axis=-1)
+        u = v / np.maximum(d, 1e-30)[:, None]
+        cos = -np.sum(u * nrm, axis=-1)
+        # Only rays that can count are traced: facing samples (unless two-sided).
+        todo = np.ones(len(x), bool) if problem.config.two_sided else cos > 0.0
+        idx = np.flatnonzero(todo)
+        tol = np.maximum(2.0 * h, d[idx] * theta / 2.0)
+        o = np.broadcast_to(pos[k], (len(idx), 3))
+        t = _trace(problem.grid, o, u[idx], d[idx], caster)
+        out[k, idx] = ~(t < d[idx] - tol)
+    return out
+
+
+def _trace(grid: SDFGrid, o: np.ndarray, u: np.ndarray, tmax: np.ndarray, caster) -> np.ndarray:
+    """First-hit distance per ray (inf on a miss), in fixed-size chunks (one compilation)."""
+    n = len(o)
+    t_out = np.empty(n, np.float32)
+    for s in range(0, n, _CHUNK):
+        e = min(n, s + _CHUNK)
+        pad = _CHUNK - (e - s)
+        oo = jnp.asarray(np.pad(o[s:e], ((0, pad), (0, 0))))
+        uu = jnp.asarray(np.pad(u[s:e], ((0, pad), (0, 0)), constant_values=1.0 / math.sqrt(3.0)))
+        tm = jnp.asarray(np.pad(tmax[s:e], (0, pad)))
+        if caster is None:
+            t, _ = trace_sdf_rays(grid, oo, uu, tm)
+        else:
+            t = caster.closest_hit(oo, uu, tm).t
+        t_out[s:e] = np.asarray(t)[: e - s]
+    return t_out
+
+
+def binary_coverage(problem: PlacementProblem, vis: np.ndarray, active: np.ndarray | None = None) -> float:
+    """Share of coverable area seen by at least one (active) probe, from :func:`binary_visibility`."""
+    if active is not None:
+        vis = vis[np.asarray(active, bool)]
+    cov = np.asarray(problem.coverable)
+    a = np.asarray(problem.area, np.float64) * cov
+    seen = vis.any(axis=0) if len(vis) else np.zeros(len(a), bool)
+    return float((a * seen).sum() / max(a.sum(), 1e-300))
+
+
+def wang_fitness_binary(problem: PlacementProblem, pos, vis: np.ndarray | None = None) -> float:
+    """Eq. 1–2 with binary visibility (and the same d̄ as the soft version)."""
+    vis = binary_visibility(problem, pos) if vis is None else vis
+    pos = jnp.asarray(pos, jnp.float32).reshape(-1, 3)
+    x = np.asarray(problem.position, np.float64)
+    n = np.asarray(problem.normal, np.float64)
+    v = x[None] - np.asarray(pos, np.float64)[:, None]
+    omega = -np.sum(v / np.maximum(np.linalg.norm(v, axis=-1, keepdims=True), 1e-30) * n[None], axis=-1)
+    if problem.config.two_sided:
+        omega = np.abs(omega)
+    dbar = np.asarray(jax.vmap(lambda p: probe_distance_term(problem, p))(pos), np.float64)
+    cfg = problem.config
+    term = (cfg.w1 * omega + cfg.w2 * dbar[:, None]) * vis
+    return float((term @ np.asarray(problem.weight, np.float64)).sum())
+
+
+def probe_clearance(problem: PlacementProblem, pos) -> np.ndarray:
+    """SDF value at each probe (negative: inside geometry)."""
+    pos = jnp.asarray(pos, jnp.float32).reshape(-1, 3)
+    return np.asarray(jax.vmap(lambda p: sdf_value(problem.grid, p))(pos))
