@@ -36,7 +36,7 @@ $(LLVM_STAMP): $(STAMP)
 TOOLS := $(STAMP) $(NODE_STAMP) $(LLVM_STAMP)
 
 demo: $(STAMP)
-	$(PY) -m probeplace demo
+	$(PY) -m probeplace demo --config configs/demo.yaml
 
 # pytest exits 5 when it collected no test: that is neither a pass nor a fail we accept.
 test: $(TOOLS)

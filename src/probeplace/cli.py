@@ -18,9 +18,10 @@ def _cmd_scenes(args: argparse.Namespace) -> int:
 
 
 def _cmd_demo(args: argparse.Namespace) -> int:
-    from .demo import run_demo
+    from .demo import load_demo_config, run_demo
 
-    return run_demo(out_dir=args.out)
+    config = load_demo_config(args.config) if args.config else None
+    return run_demo(out_dir=args.out, config=config)
 
 
 # --- export (issue 8) ---
@@ -74,6 +75,53 @@ def _add_export_parser(sub) -> None:
     e.set_defaults(func=_cmd_export)
 
 
+# --- place (placement helper) ---
+def _cmd_place(args: argparse.Namespace) -> int:
+    from pathlib import Path
+
+    from ._core import save_probe_set
+    from .placement import place, save_top_view
+    from .scene import load_scene
+
+    scene = load_scene(args.scene)
+    budget = "auto" if args.budget == "auto" else _positive_int(args.budget)
+    refiner = None if args.refiner == "none" else args.refiner
+    probes, meta = place(
+        scene,
+        method=args.method,
+        budget=budget,
+        refiner=refiner,
+        objective=args.objective,
+        seed=args.seed,
+        target=args.target,
+    )
+    out = Path(args.out)
+    meta["scene"] = args.scene
+    save_probe_set(out, probes, units_m=scene.unit_m, metadata=meta)
+    png = Path(args.png) if args.png else out.with_suffix(".png")
+    save_top_view(
+        scene,
+        probes.pos_world,
+        png,
+        title=f"{args.scene}: {probes.capacity} probes, coverage {meta['coverage']:.4f}",
+    )
+    print(
+        f"{probes.capacity} probes, coverage {meta['coverage']:.4f}, "
+        f"{meta['timings']['total_s']:.1f} s -> {out}, {png}"
+    )
+    return 0
+
+
+def _positive_int(text: str) -> int:
+    try:
+        n = int(text)
+    except ValueError:
+        n = 0
+    if n < 1:
+        raise ProbeplaceError(f"--budget must be 'auto' or a positive integer, got {text!r}")
+    return n
+
+
 def build_parser() -> argparse.ArgumentParser:
     p = argparse.ArgumentParser(prog="probeplace", description=__doc__)
     p.add_argument("-v", "--verbose", action="store_true", help="log at INFO level")
@@ -82,7 +130,24 @@ def build_parser() -> argparse.ArgumentParser:
     s.set_defaults(func=_cmd_scenes)
     d = sub.add_parser("demo", help="run the default experiment on the built-in Cornell box")
     d.add_argument("--out", default="results/demo", help="output folder (default: results/demo)")
+    d.add_argument("--config", help="YAML config (default: built-in values, as in configs/demo.yaml)")
     d.set_defaults(func=_cmd_demo)
+    # --- place (placement helper) ---
+    pl = sub.add_parser("place", help="place probes in a scene and write a ProbeSet JSON file + top view")
+    pl.add_argument("scene", help="scene name or file (see `probeplace scenes`)")
+    pl.add_argument("--method", default="skeleton+medial", choices=["skeleton", "medial", "skeleton+medial"])
+    pl.add_argument("--budget", default="auto", help="'auto' (fewest probes to the target) or a count")
+    pl.add_argument(
+        "--refiner",
+        default="none",
+        help="none, gibbs, ascent, bfgs, nonlinear_cg, adam, projected_gradient, lbfgsb",
+    )
+    pl.add_argument("--objective", default="coverage", choices=["coverage", "wang"])
+    pl.add_argument("--target", type=float, default=1.0, help="coverage target (default 1.0)")
+    pl.add_argument("--seed", type=int, default=0)
+    pl.add_argument("--out", default="probes.json", help="ProbeSet file (default probes.json)")
+    pl.add_argument("--png", default=None, help="top view PNG (default: --out with .png)")
+    pl.set_defaults(func=_cmd_place)
     _add_export_parser(sub)
     return p
 
