@@ -8,11 +8,10 @@ import jax.numpy as jnp
 import numpy as np
 import pytest
 
-from probeplace.geometry import AbstractRayCaster
+from probeplace.geometry import AbstractRayCaster, BruteForceCaster
 from probeplace.render import (
     COMPONENTS,
     RenderConfig,
-    SmallSceneCaster,
     load_exr,
     render,
     save_render,
@@ -128,7 +127,7 @@ def test_batching_does_not_change_the_image(cornell):
 class _HostCaster(AbstractRayCaster):
     """Wraps a caster behind NumPy round trips: not traceable, so render takes its host bounce loop."""
 
-    inner: SmallSceneCaster
+    inner: BruteForceCaster
     jittable = False
 
     def closest_hit(self, origins, directions, t_max=jnp.inf):
@@ -144,7 +143,7 @@ def test_host_loop_matches_jitted_loop(cornell):
         width=8, height=8, spp=4, max_depth=6, rr_depth=2, progress=False, paths_per_batch=_PPB
     )
     ra = render(cornell, "front", cfg, key=jax.random.key(4))
-    rb = render(cornell, "front", cfg, key=jax.random.key(4), caster=_HostCaster(SmallSceneCaster(cornell)))
+    rb = render(cornell, "front", cfg, key=jax.random.key(4), caster=_HostCaster(BruteForceCaster(cornell)))
     np.testing.assert_allclose(ra.mean, rb.mean, rtol=1e-4, atol=1e-5)
 
 
@@ -163,8 +162,8 @@ def test_trace_rays_chunks_and_offsets(cornell):
     assert full.mean.shape == (n, len(COMPONENTS), 3)
 
 
-def test_small_caster_matches_numpy_reference(cornell):
-    # 4096 rays: above the batch size where the (n, n_tri, 3) layout miscompiles on XLA:CPU.
+def test_brute_force_caster_matches_numpy_reference(cornell):
+    # 4096 rays: above the batch size where an earlier (n, n_tri, 3) layout miscompiled on XLA:CPU.
     n = 4096
     o = np.asarray(jax.random.uniform(jax.random.key(0), (n, 3), jnp.float32, 50.0, 500.0))
     d = np.array(jax.random.normal(jax.random.key(1), (n, 3), jnp.float32))
@@ -181,7 +180,7 @@ def test_small_caster_matches_numpy_reference(cornell):
     t = np.sum(e2[None] * q, -1) * inv
     t = np.where((u >= 0) & (v >= 0) & (u + v <= 1) & (t > 0), t, np.inf)
     ref_t, ref_tri = t.min(1), np.where(np.isfinite(t.min(1)), t.argmin(1), -1)
-    hit = SmallSceneCaster(cornell).closest_hit(jnp.asarray(o), jnp.asarray(d))
+    hit = BruteForceCaster(cornell).closest_hit(jnp.asarray(o), jnp.asarray(d))
     got_t = np.asarray(hit.t)
     same = np.isclose(got_t, ref_t, rtol=1e-4) | (np.isinf(got_t) & np.isinf(ref_t))
     assert same.mean() > 0.999  # a ray grazing a shared edge may pick the neighbour in float32
@@ -190,7 +189,7 @@ def test_small_caster_matches_numpy_reference(cornell):
     picked_t = t[np.arange(n), np.maximum(got_tri, 0)]
     ok_tri = (got_tri == ref_tri) | np.isclose(picked_t, ref_t, rtol=1e-4)
     assert ok_tri.mean() > 0.999
-    occ = SmallSceneCaster(cornell).occluded(jnp.asarray(o), jnp.asarray(d), jnp.full(n, 100.0, jnp.float32))
+    occ = BruteForceCaster(cornell).occluded(jnp.asarray(o), jnp.asarray(d), jnp.full(n, 100.0, jnp.float32))
     assert (np.asarray(occ) == (ref_t < 100.0)).mean() > 0.999
 
 

@@ -110,7 +110,7 @@ class BruteForceCaster(AbstractRayCaster):
     (a ``fori_loop`` over the triangles, 4 per iteration), each test a ray–plane distance plus two
     precomputed barycentric planes (cheaper than Möller–Trumbore; see ``__init__``). The earlier vmapped
     (n, n_tri, 3) formulation was ~6x slower on CPU and miscompiled on XLA:CPU for batches over ~512 rays
-    (render/_smallcast.py). Values are computed in the rays' dtype.
+    (see docs/render.md, "Known issue"). Values are computed in the rays' dtype.
     Ties (coplanar overlapping triangles at the same distance) go to the lower triangle id.
     """
 

@@ -44,4 +44,3 @@ from ._sampling import power_heuristic as power_heuristic
 from ._sampling import seed_from_key as seed_from_key
 from ._sampling import to_local as to_local
 from ._sampling import to_world as to_world
-from ._smallcast import SmallSceneCaster as SmallSceneCaster

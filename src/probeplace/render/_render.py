@@ -23,12 +23,11 @@ from jaxtyping import Array, Bool, Float, Int, Key, UInt32
 from tqdm.auto import tqdm
 
 from .._core import Camera, ConfigError, Scene
-from ..geometry import AbstractRayCaster, BruteForceCaster
+from ..geometry import BRUTE_FORCE_MAX_TRIANGLES, AbstractRayCaster, BruteForceCaster, BVHCaster, make_caster
 from ._camera import camera_rays
 from ._integrator import COMPONENTS, Paths, ShadeContext, add_shadowed, components, init_paths, shade
 from ._lights import light_table
 from ._sampling import DIM_DIR_U, path_uniforms, seed_from_key
-from ._smallcast import SmallSceneCaster
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -98,15 +97,12 @@ def is_jittable(caster: AbstractRayCaster) -> bool:
     """Whether a caster's queries can be traced inside ``jax.jit`` (a host caster such as Embree can't).
 
     Casters declare it with a ``jittable`` class attribute; without one, the JAX casters (brute force,
-    BVH, :class:`SmallSceneCaster`) are jittable and anything else (Embree) is driven from the host.
+    BVH) are jittable and anything else (Embree) is driven from the host.
     """
     declared = getattr(type(caster), "jittable", None)
     if declared is not None:
         return bool(declared)
-    from .. import geometry
-
-    jax_casters = (BruteForceCaster, SmallSceneCaster, getattr(geometry, "BVHCaster", SmallSceneCaster))
-    return isinstance(caster, jax_casters)
+    return isinstance(caster, (BruteForceCaster, BVHCaster))
 
 
 def _batch_layout(cfg: RenderConfig, n_items: int) -> tuple[int, int]:
@@ -235,19 +231,12 @@ def shade_context(scene: Scene, cfg: RenderConfig) -> ShadeContext:
 
 
 def default_caster(scene: Scene) -> AbstractRayCaster:
-    """The caster :func:`render` uses when given none: :class:`SmallSceneCaster` for tiny scenes,
-    else the geometry stage's ``make_caster(scene)`` (BVH / Embree) when available."""
-    if scene.n_triangles <= SmallSceneCaster.MAX_TRIANGLES:
-        return SmallSceneCaster(scene)
-    from .. import geometry
-
-    make = getattr(geometry, "make_caster", None)
-    if make is None:
-        raise ConfigError(
-            f"scene {scene.name!r} has {scene.n_triangles} triangles: pass caster= (a BVH or Embree "
-            "caster from probeplace.geometry)"
-        )
-    return make(scene)
+    """The caster :func:`render` uses when given none: the jittable brute-force caster for tiny scenes
+    (the whole bounce loop then runs in one jitted function), else ``geometry.make_caster(scene)``
+    (Embree on the host when embreex is installed, else the JAX BVH)."""
+    if scene.n_triangles <= BRUTE_FORCE_MAX_TRIANGLES:
+        return BruteForceCaster(scene)
+    return make_caster(scene)
 
 
 def _seed(key) -> UInt32[Array, ""]:
