@@ -8,6 +8,19 @@ from ._bake import path_traced_radiance as path_traced_radiance
 from ._filter import distance_moments as distance_moments
 from ._filter import irradiance_map as irradiance_map
 from ._filter import mip_chains as mip_chains
+
+# --- tracing and shading ---
+from ._index import GridIndex as GridIndex
+from ._index import VoxelIndex as VoxelIndex
+from ._index import grid_index as grid_index
+from ._index import voxel_index as voxel_index
 from ._io import load_probes as load_probes
 from ._io import save_probes as save_probes
 from ._plot import save_contact_sheet as save_contact_sheet
+from ._trace import LightFieldTracer as LightFieldTracer
+from ._trace import TraceConfig as TraceConfig
+from ._trace import TraceResult as TraceResult
+from ._trace import make_tracer as make_tracer
+from ._trace import trace_light_field as trace_light_field
+from ._trace import trace_probe as trace_probe
+from ._trace import trace_ray as trace_ray
