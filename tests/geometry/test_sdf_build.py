@@ -117,6 +117,47 @@ def test_cornell_sign_matches_per_component_winding_rule():
     np.testing.assert_array_equal(got < 0, w > 0.5)
 
 
+def _block_lattice_signs():
+    """Lattice points around the Cornell blocks more than a voxel from any surface: (points, SDF value,
+    max per-component winding number). Every lattice point, not random ones: the band's outer rim is one
+    voxel thin."""
+    scene, grid = cornell_box(), ref.cornell_sdf()
+    v, f = np.asarray(scene.vertices, np.float64), np.asarray(scene.faces, np.int64)
+    comp, n_comp = _sdf_build.weld_components(v, f)
+    h, o = float(grid.voxel_size), np.asarray(grid.origin, np.float64)
+    values = np.asarray(grid.values)
+    idx = np.stack(np.meshgrid(*[np.arange(n) for n in values.shape], indexing="ij"), -1).reshape(-1, 3)
+    p = o + idx * h
+    near_blocks = (p[:, 1] < 345) & (p[:, 0] > 60) & (p[:, 0] < 450) & (p[:, 2] > 50) & (p[:, 2] < 430)
+    idx, p = idx[near_blocks], p[near_blocks]
+    far = _true_unsigned(scene, p) > 1.01 * h
+    idx, p = idx[far], p[far]
+    w = np.max([igl.fast_winding_number(v, f[comp == c], p) for c in range(n_comp)], axis=0)
+    return p, values[idx[:, 0], idx[:, 1], idx[:, 2]], w
+
+
+def test_cornell_block_interiors_are_negative_on_every_lattice_point():
+    """A block's bottom face coincides with the floor; this once left a one-voxel layer of positive
+    values at the band's outer rim inside both blocks (the rim now takes its sign from the deep fill)."""
+    p, got, w = _block_lattice_signs()
+    wrong = (w > 0.5) & (got >= 0)
+    assert (w > 0.5).sum() > 1000
+    assert wrong.sum() == 0, f"{wrong.sum()} lattice points inside a block are positive, e.g. {p[wrong][:3]}"
+
+
+@pytest.mark.xfail(
+    strict=True,
+    reason="known bug: ~55 lattice points just outside the short block's "
+    "top edges (1-2 voxels away) read negative; see docs/sdf.md 'Known sign errors'",
+)
+def test_cornell_lattice_points_outside_the_blocks_are_positive():
+    p, got, w = _block_lattice_signs()
+    wrong = (w <= 0.5) & (got < 0)
+    assert wrong.sum() == 0, (
+        f"{wrong.sum()} lattice points outside the blocks are negative, e.g. {p[wrong][:3]}"
+    )
+
+
 def test_float32_out():
     grid = ref.box_sdf()
     assert grid.values.dtype == jnp.float32 and grid.origin.dtype == jnp.float32

@@ -323,7 +323,12 @@ def build_sdf(
     mag = np.where(in_band, dist, np.maximum(np.float32(band), lb))
     del lb, e
     clock("far-field bound")
-    inside = fill_deep_sign(in_band, inside.reshape(shape))
+    # Signs of the band's outer rim come from the deep fill, not from the nearest face: at the band edge a
+    # face may fall just outside the band by float rounding while a coincident opposite face (a block's
+    # bottom on a floor) falls inside, so the tie rule above cannot see both and the rim takes the wrong
+    # side (a one-voxel layer of wrong sign inside the Cornell blocks, tests/geometry/test_sdf_build.py).
+    sign_band = in_band & (dist <= np.float32(band - 1.0))
+    inside = fill_deep_sign(sign_band, inside.reshape(shape))
     clock("sign fill")
     hf = np.float32(h)
     values = np.where(inside, -mag, mag) * hf
