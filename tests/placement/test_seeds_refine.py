@@ -6,9 +6,7 @@ import numpy as np
 import pytest
 
 from probeplace.placement import (
-    FitnessConfig,
     get_refiner,
-    make_problem,
     medial_axis_seeds,
     objective_fn,
     probe_clearance,
@@ -53,52 +51,42 @@ def test_stochastic_direction_drifts_toward_higher_values():
     assert abs(u[:, 1].mean()) < 0.03 and abs(u[:, 2].mean()) < 0.03
 
 
-@pytest.fixture(scope="module")
-def cornell_problem(cornell):
-    return make_problem(cornell, key=jax.random.key(0), n_samples=4000)
-
-
-def test_seeds_in_free_space_and_scene_sized(cornell_problem):
-    for seeds in (skeleton_seeds(cornell_problem), medial_axis_seeds(cornell_problem)):
+def test_seeds_in_free_space_and_scene_sized(small):
+    for seeds in (skeleton_seeds(small), medial_axis_seeds(small)):
         assert 1 <= len(seeds) < 500
-        assert np.all(probe_clearance(cornell_problem, seeds) > 0)
-        lo, hi = np.asarray(cornell_problem.lo), np.asarray(cornell_problem.hi)
+        assert np.all(probe_clearance(small, seeds) > 0)
+        lo, hi = np.asarray(small.lo), np.asarray(small.hi)
         assert np.all((seeds >= lo) & (seeds <= hi))
-
-
-@pytest.fixture(scope="module")
-def tiny(cornell):
-    return make_problem(cornell, key=jax.random.key(1), n_samples=400, config=FitnessConfig(n_steps=12))
 
 
 POOR = [[40.0, 40.0, 40.0], [60.0, 50.0, 45.0]]  # two probes bunched in a corner
 
 
-def _improves(tiny, name, objective, **kw):
+def _improves(small, name, objective, **kw):
     pos = jnp.asarray(POOR, jnp.float32)
-    res = get_refiner(name, objective=objective, **kw).refine(tiny, pos, key=jax.random.key(0))
-    f = objective_fn(tiny, objective)
+    res = get_refiner(name, objective=objective, **kw).refine(small, pos, key=jax.random.key(0))
+    f = objective_fn(small, objective)
     assert res.history.shape[0] >= 1
     assert np.all(np.isfinite(np.asarray(res.history)))
     assert int(res.status) in (0, 1)
-    assert np.all(probe_clearance(tiny, np.asarray(res.pos)) >= float(tiny.clearance) * 0.99)
+    assert np.all(probe_clearance(small, np.asarray(res.pos)) >= float(small.clearance) * 0.99)
     assert float(f(res.pos)) > float(f(pos)) * 1.05
 
 
 @pytest.mark.parametrize("objective", ["coverage", "wang"])
-def test_gibbs_improves(tiny, objective):
-    _improves(tiny, "gibbs", objective, n_sweeps=4, beta=50.0)
+def test_gibbs_improves(small, objective):
+    _improves(small, "gibbs", objective, n_sweeps=4, beta=50.0)
 
 
-def test_bfgs_improves(tiny):
-    _improves(tiny, "bfgs", "coverage", max_steps=10)
+def test_bfgs_improves(small):
+    _improves(small, "bfgs", "coverage", max_steps=10)
 
 
 @pytest.mark.slow
 @pytest.mark.parametrize("name", ["ascent", "nonlinear_cg", "adam", "projected_gradient", "lbfgsb"])
-def test_other_refiners_improve(tiny, name):
+def test_other_refiners_improve(small, name):
     kw = {"n_sweeps": 4} if name == "ascent" else {"max_steps": 15}
-    _improves(tiny, name, "coverage", **kw)
+    _improves(small, name, "coverage", **kw)
 
 
 def test_bad_refiner_name():

@@ -22,12 +22,15 @@ setting); ``two_sided`` drops that test. A probe inside a solid sees nothing.
   Differentiable in the probe position.
 
 **Wang's fitness (Eq. 1–2)**, literally: R(P) = Σᵢ πᵢ, πᵢ = Σₖ (w₁ Ω̄ᵢₖ + w₂ d̄ₖ) Vᵢₖ with
-Ω̄ᵢₖ = −ωᵢₖ·nᵢ (ω the direction from probe k to sample i) and d̄ₖ = Σ_ω |p̄ₖ − p(ω)| the distances to the
-surfaces probe k sees over a subsampled set of its octahedral directions (Wang §3.3 subsamples ω too).
+Ω̄ᵢₖ = −ωᵢₖ·nᵢ (ω the direction from probe k to sample i) and d̄ₖ = Σ_ω |p̄ₖ − p(ω)| the sum of the
+distances to all the surfaces probe k sees (Wang §3.2, "Distance to Surface"). The surface points p(ω)
+probe k sees are, in the atlas, the samples it sees, so the sum over its directions is taken over the
+atlas: d̄ₖ = Σᵢ (aᵢ/A) Vᵢₖ |pₖ − xᵢ| / L. That is a smooth function of pₖ (the Euclidean probe–sample
+distance times the soft visibility), so its gradient is exact; the distance to the first surface along a
+traced direction is not (the tracer's hit is piecewise in pₖ wherever the hit jumps between surfaces).
 Two normalisations, both constant factors absorbed into w₁, w₂: the texel sum Σᵢ becomes the
 area-weighted sum Σᵢ aᵢ/A (Wang's atlas texels have about equal area; our samples carry their area), and
-d̄ₖ is the *mean* over the N_ω directions divided by the scene diagonal L (escaping rays count L), so w₂
-is dimensionless and does not depend on N_ω.
+d̄ₖ is divided by the scene diagonal L, so d̄ₖ ∈ [0, 1] and w₂ is dimensionless.
 
 **Union coverage**: C(P) = Σᵢ aᵢ/A · (1 − Πₖ (1 − Vᵢₖ)), a noisy-OR: a sample seen by three probes is
 not three times as covered (DESIGN.md), and C ∈ [0, 1] is the soft share of area seen.
@@ -48,14 +51,13 @@ import jax.numpy as jnp
 import numpy as np
 from jaxtyping import Array, Bool, Float
 
-from .._core import ConfigError, Scene, safe_norm, texel_directions
+from .._core import ConfigError, Scene, safe_norm
 from ..geometry import (
     SDFGrid,
     SurfaceSamples,
     build_sdf,
     sample_surface,
     sdf_value,
-    sphere_trace,
     trace_sdf_rays,
 )
 from ._field import tighten_sdf
@@ -72,7 +74,6 @@ class FitnessConfig(eqx.Module):
         n_steps: samples along each probe→sample segment for soft visibility (static).
         facing_softness: κ of the logistic facing weight σ(−ω·n/κ).
         two_sided: samples are seen from both sides (static).
-        dist_dir_res: the distance term traces the texel centres of a map of this resolution (static).
         clearance_voxels: a probe position is feasible when its SDF value is at least this many voxels.
     """
 
@@ -83,7 +84,6 @@ class FitnessConfig(eqx.Module):
     n_steps: int = eqx.field(static=True, default=32)
     facing_softness: float = 0.1
     two_sided: bool = eqx.field(static=True, default=False)
-    dist_dir_res: int = eqx.field(static=True, default=6)
     clearance_voxels: float = 2.0
 
     def __check_init__(self):
@@ -95,8 +95,8 @@ class FitnessConfig(eqx.Module):
             v = getattr(self, name)
             if not (isinstance(v, int | float) and math.isfinite(v) and v >= 0):
                 raise ConfigError(f"FitnessConfig.{name} must be a non-negative number, got {v!r}")
-        if self.map_res < 1 or self.n_steps < 2 or self.dist_dir_res < 1:
-            raise ConfigError("FitnessConfig: map_res ≥ 1, n_steps ≥ 2 and dist_dir_res ≥ 1 are required")
+        if self.map_res < 1 or self.n_steps < 2:
+            raise ConfigError("FitnessConfig: map_res ≥ 1 and n_steps ≥ 2 are required")
 
 
 class PlacementProblem(eqx.Module):
@@ -108,7 +108,6 @@ class PlacementProblem(eqx.Module):
         weight: aᵢ/A over coverable samples (zero for the others); sums to 1.
         coverable: whether a probe inside the box can see the sample at all (module docstring).
         lo, hi: the placement box (the scene bounds), world frame.
-        dist_dirs: unit directions the distance term traces from each probe.
         diag: scene diagonal L, scene units.
         config: the fitness parameters.
     """
@@ -121,7 +120,6 @@ class PlacementProblem(eqx.Module):
     coverable: Bool[Array, " n"]
     lo: Float[Array, "3"]
     hi: Float[Array, "3"]
-    dist_dirs: Float[Array, "n_dir 3"]
     diag: Float[Array, ""]
     config: FitnessConfig
 
@@ -253,7 +251,6 @@ def make_problem(
     area = np.asarray(samples.area, np.float64)
     w = np.where(cov, area, 0.0)
     w = w / max(w.sum(), 1e-300)
-    dirs = texel_directions(config.dist_dir_res).reshape(-1, 3)
     return PlacementProblem(
         grid=grid,
         position=samples.position,
@@ -263,7 +260,6 @@ def make_problem(
         coverable=jnp.asarray(cov),
         lo=jnp.asarray(lo, jnp.float32),
         hi=jnp.asarray(hi, jnp.float32),
-        dist_dirs=dirs,
         diag=jnp.asarray(np.linalg.norm(np.asarray(hi) - np.asarray(lo)), jnp.float32),
         config=config,
     )
@@ -345,17 +341,23 @@ def probe_column(problem: PlacementProblem, p: Float[Array, "3"]) -> ProbeColumn
     return ProbeColumn(vis=vis * inside, omega=omega)
 
 
-def probe_distance_term(problem: PlacementProblem, p: Float[Array, "3"]) -> Float[Array, ""]:
-    """d̄ of ONE probe: mean over the subsampled directions of the distance to the first surface / L.
+def probe_distance_term(
+    problem: PlacementProblem, p: Float[Array, "3"], vis: Float[Array, " n"] | None = None
+) -> Float[Array, ""]:
+    """d̄ of ONE probe: Σᵢ (aᵢ/A) Vᵢ |p − xᵢ| / L, Wang Eq. 2's distance term over the atlas (module doc).
 
-    Differentiable in ``p`` through the sphere tracer's implicit hit-distance gradient.
+    Args:
+        problem: the fitness model.
+        p: the probe position.
+        vis: its visibility column Vᵢ (soft or binary); :func:`probe_column`'s soft one when ``None``.
+
+    Smooth in ``p`` (the Euclidean probe–sample distance and the soft visibility), so the analytic
+    gradient matches finite differences.
     """
+    vis = probe_column(problem, p).vis if vis is None else vis
     dtype = p.dtype
-    diag = problem.diag.astype(dtype)
-    dirs = problem.dist_dirs.astype(dtype)
-    t, hit = jax.vmap(lambda w: sphere_trace(problem.grid, p, w, diag))(dirs)
-    t = jnp.where(hit, jnp.minimum(t, diag), diag)
-    return jnp.mean(t) / diag
+    d = safe_norm(problem.position.astype(dtype) - p[None, :])
+    return jnp.sum(problem.weight.astype(dtype) * vis.astype(dtype) * d) / problem.diag.astype(dtype)
 
 
 def wang_from_columns(
@@ -387,7 +389,7 @@ def wang_fitness(
     """Wang et al. 2019 Eq. 1–2 with soft visibility (module docstring); differentiable in ``pos``."""
     active = jnp.ones(pos.shape[0], bool) if active is None else active
     col = _columns(problem, pos)
-    dbar = jax.vmap(lambda p: probe_distance_term(problem, p))(pos)
+    dbar = jax.vmap(lambda p, v: probe_distance_term(problem, p, v))(pos, col.vis)
     return wang_from_columns(problem, col.vis, col.omega, dbar, active)
 
 
@@ -425,6 +427,26 @@ def binary_visibility(problem: PlacementProblem, pos, *, caster=None) -> np.ndar
     if len(pos) == 0:
         return out
     inside = np.asarray(jax.vmap(lambda p: sdf_value(problem.grid, p))(jnp.asarray(pos))) <= 0.0
+    # The rays of several probes share the fixed-size trace chunks (a probe's few thousand facing samples
+    # would otherwise pad a whole chunk): probes are gathered until a chunk is full, then traced at once.
+    batch: list[tuple[int, np.ndarray, np.ndarray, np.ndarray, np.ndarray]] = []
+    n_batch = 0
+
+    def flush():
+        o = np.concatenate([np.broadcast_to(pos[k], (len(i), 3)) for k, i, _, _, _ in batch])
+        t = _trace(
+            problem.grid,
+            o,
+            np.concatenate([b[2] for b in batch]),
+            np.concatenate([b[3] for b in batch]),
+            caster,
+        )
+        s = 0
+        for k, idx, _, d, tol in batch:
+            out[k, idx] = ~(t[s : s + len(idx)] < d - tol)
+            s += len(idx)
+        batch.clear()
+
     for k in range(len(pos)):
         if inside[k]:
             continue
@@ -435,10 +457,13 @@ def binary_visibility(problem: PlacementProblem, pos, *, caster=None) -> np.ndar
         # Only rays that can count are traced: facing samples (unless two-sided).
         todo = np.ones(len(x), bool) if problem.config.two_sided else cos > 0.0
         idx = np.flatnonzero(todo)
-        tol = np.maximum(2.0 * h, d[idx] * theta / 2.0)
-        o = np.broadcast_to(pos[k], (len(idx), 3))
-        t = _trace(problem.grid, o, u[idx], d[idx], caster)
-        out[k, idx] = ~(t < d[idx] - tol)
+        if n_batch and n_batch + len(idx) > _CHUNK:
+            flush()
+            n_batch = 0
+        batch.append((k, idx, u[idx], d[idx], np.maximum(2.0 * h, d[idx] * theta / 2.0)))
+        n_batch += len(idx)
+    if batch:
+        flush()
     return out
 
 
@@ -471,7 +496,7 @@ def binary_coverage(problem: PlacementProblem, vis: np.ndarray, active: np.ndarr
 
 
 def wang_fitness_binary(problem: PlacementProblem, pos, vis: np.ndarray | None = None) -> float:
-    """Eq. 1–2 with binary visibility (and the same d̄ as the soft version)."""
+    """Eq. 1–2 with binary visibility (d̄ₖ from the same binary visibility, see probe_distance_term)."""
     vis = binary_visibility(problem, pos) if vis is None else vis
     pos = jnp.asarray(pos, jnp.float32).reshape(-1, 3)
     x = np.asarray(problem.position, np.float64)
@@ -480,10 +505,12 @@ def wang_fitness_binary(problem: PlacementProblem, pos, vis: np.ndarray | None =
     omega = -np.sum(v / np.maximum(np.linalg.norm(v, axis=-1, keepdims=True), 1e-30) * n[None], axis=-1)
     if problem.config.two_sided:
         omega = np.abs(omega)
-    dbar = np.asarray(jax.vmap(lambda p: probe_distance_term(problem, p))(pos), np.float64)
+    w = np.asarray(problem.weight, np.float64)
+    # Eq. 2's d̄ₖ with the binary visibility (probe_distance_term)
+    dbar = (vis * np.linalg.norm(v, axis=-1)) @ w / float(problem.diag)
     cfg = problem.config
     term = (cfg.w1 * omega + cfg.w2 * dbar[:, None]) * vis
-    return float((term @ np.asarray(problem.weight, np.float64)).sum())
+    return float((term @ w).sum())
 
 
 def probe_clearance(problem: PlacementProblem, pos) -> np.ndarray:

@@ -94,7 +94,10 @@ def _run(cfg: OptimistixRefiner, problem, pos, active) -> RefineResult:
 
     def body(carry, _):
         z, st, done = carry
-        z_new, st_new, _ = solver.step(loss, z, None, {}, st, frozenset())
+        # optax's Adam bias correction raises a Python-float decay to an int32 count (decay**count), which
+        # strict dtype promotion rejects; the objective itself stays float-clean under strict promotion.
+        with jax.numpy_dtype_promotion("standard"):
+            z_new, st_new, _ = solver.step(loss, z, None, {}, st, frozenset())
         term, _ = solver.terminate(loss, z_new, None, {}, st_new, frozenset())
         z = jnp.where(done, z, z_new)
         st = jax.tree.map(lambda a, b: jnp.where(done, a, b), st, st_new)

@@ -120,7 +120,6 @@ def place(
                 "n_steps",
                 "facing_softness",
                 "two_sided",
-                "dist_dir_res",
                 "clearance_voxels",
             )
         },
@@ -169,7 +168,7 @@ def smallest_full_grid(problem, *, max_probes: int = 4096, target: float = 1.0) 
             return len(pos), cov, dims
 
 
-def save_top_view(scene: Scene, pos: np.ndarray, path: str | Path, *, title: str = "") -> Path:
+def save_top_view(scene: Scene, pos: np.ndarray | jax.Array, path: str | Path, *, title: str = "") -> Path:
     """PNG of the probes (red) over the scene's triangles seen from above (x right, z down; +Y up)."""
     import matplotlib
 

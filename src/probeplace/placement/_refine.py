@@ -224,7 +224,7 @@ def _gibbs_run(cfg: GibbsRefiner, problem: PlacementProblem, pos, active, key, s
 
     def column(p):
         col = probe_column(problem, p)
-        d = probe_distance_term(problem, p) if wang else jnp.zeros((), dtype)
+        d = probe_distance_term(problem, p, col.vis) if wang else jnp.zeros((), dtype)
         return col.vis, col.omega, d
 
     def per_probe(vis, omega, d):  # Wang: probe k's share r_k of Eq. 1
