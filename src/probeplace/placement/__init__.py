@@ -31,3 +31,11 @@ from ._refine import stochastic_direction as stochastic_direction
 from ._seeds import medial_axis_seeds as medial_axis_seeds
 from ._seeds import shrink_balls as shrink_balls
 from ._seeds import skeleton_seeds as skeleton_seeds
+
+# --- baselines ---
+# isort: split
+from ._lod_grid import LODGrid as LODGrid
+from ._lod_grid import lod_probe_grid as lod_probe_grid
+from ._uniform import INSIDE_CHOICES as INSIDE_CHOICES
+from ._uniform import UniformGridResult as UniformGridResult
+from ._uniform import uniform_probe_grid as uniform_probe_grid
