@@ -182,7 +182,6 @@ def _stage_bake(scene: Scene, probes, cfg: dict, out: Path) -> dict:
 
 DEFAULT_CONFIG = {
     "scene": "cornell_box",
-    "gbuffer": {},
     "reference": {"view": "front", "width": 128, "height": 128, "spp": 64, "max_depth": 8, "seed": 0},
     "place": {"method": "skeleton+medial", "seed": 0},
     "bake": {"radiance_res": 32, "spp": 8, "seed": 1},
@@ -210,7 +209,8 @@ def _merge_config(config: dict) -> dict:
 
 
 def load_demo_config(path: str | Path) -> dict:
-    """Read a demo YAML config (configs/demo.yaml); a clear ConfigError for a missing or broken file."""
+    """Read a demo YAML config (configs/demo.yaml): the overrides :func:`run_demo` merges into
+    DEFAULT_CONFIG (and checks there). A clear ConfigError for a missing or broken file."""
     import yaml
 
     from ._core import ConfigError
@@ -224,7 +224,7 @@ def load_demo_config(path: str | Path) -> dict:
         raise ConfigError(f"{path}: not valid YAML ({e})") from None
     if not isinstance(data, dict):
         raise ConfigError(f"{path}: the top level must be a mapping")
-    return _merge_config(data)
+    return data
 
 
 def run_demo(out_dir: str | Path = "results/demo", config: dict | None = None) -> int:

@@ -131,7 +131,7 @@ class BakeConfig:
             raise ConfigError(f"BakeConfig.quality must be positive, got {self.quality!r}")
 
 
-def default_radiance_res(scene: Scene, probes: ProbeSet, *, quality: float = 1.0) -> int:
+def default_radiance_res(scene: Scene, *, quality: float = 1.0) -> int:
     """Radiance-map resolution so that a texel's footprint at the typical probe-to-wall distance is about
     one surface-sample spacing (the scene's own feature scale), rounded to a power of two in [16, 128].
 
@@ -210,7 +210,7 @@ def bake_probes(
         raise ConfigError(f"probe positions must be finite; {int((~np.isfinite(pos)).any(-1).sum())} are not")
     if pos.shape[0] == 0:
         raise ConfigError("cannot bake an empty probe set")
-    res = config.radiance_res or default_radiance_res(scene, probes, quality=config.quality)
+    res = config.radiance_res or default_radiance_res(scene, quality=config.quality)
     lo, hi = (np.asarray(b) for b in scene.bounds)
     far = float(2.0 * np.linalg.norm(hi - lo))
 
