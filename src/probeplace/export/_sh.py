@@ -16,36 +16,11 @@ from __future__ import annotations
 
 import numpy as np
 
+from .._core._sh import COSINE_LOBE as COSINE_LOBE
+from .._core._sh import SH_CONVENTION as SH_CONVENTION
+from .._core._sh import SH_ORDER as SH_ORDER
+from .._core._sh import sh_basis as sh_basis
 from ._octa import texel_directions, texel_solid_angles
-
-SH_ORDER = ("Y00", "Y1-1", "Y10", "Y11", "Y2-2", "Y2-1", "Y20", "Y21", "Y22")
-SH_CONVENTION = (
-    "three.js SphericalHarmonics3: real SH L2 coefficients of incident radiance in the world frame "
-    "(right-handed, +Y up), order Y00, Y1-1(y), Y10(z), Y11(x), Y2-2(xy), Y2-1(yz), Y20(3z^2-1), "
-    "Y21(xz), Y22(x^2-y^2); irradiance E(n) = sum_lm A_l c_lm Y_lm(n), A = (pi, 2pi/3, pi/4) "
-    "(three.js shGetIrradianceAt)"
-)
-# Â_l per coefficient (R&H 2001 Eq. 8-9).
-COSINE_LOBE = np.array([np.pi] + [2.0 * np.pi / 3.0] * 3 + [np.pi / 4.0] * 5)
-
-
-def sh_basis(directions: np.ndarray) -> np.ndarray:
-    """(..., 3) unit directions → (..., 9) real SH basis values (R&H 2001 Eq. 3 constants)."""
-    x, y, z = directions[..., 0], directions[..., 1], directions[..., 2]
-    return np.stack(
-        [
-            np.full_like(x, 0.282095),
-            0.488603 * y,
-            0.488603 * z,
-            0.488603 * x,
-            1.092548 * x * y,
-            1.092548 * y * z,
-            0.315392 * (3.0 * z * z - 1.0),
-            1.092548 * x * z,
-            0.546274 * (x * x - y * y),
-        ],
-        axis=-1,
-    )
 
 
 def project_radiance(bordered_radiance: np.ndarray) -> np.ndarray:
