@@ -5,7 +5,7 @@ VENV   := .venv
 PY     := $(VENV)/bin/python
 STAMP  := $(VENV)/.installed
 
-.PHONY: demo test test-slow lint bench clean-venv
+.PHONY: demo demo-stages test test-slow lint bench cluster clean-venv
 
 NODE_STAMP := node_modules/.installed
 LLVM_STAMP := $(VENV)/.llvm
@@ -35,7 +35,15 @@ $(LLVM_STAMP): $(STAMP)
 
 TOOLS := $(STAMP) $(NODE_STAMP) $(LLVM_STAMP)
 
+# `make demo`: the cornell_comparison preset (every placement method on the Cornell box, baked and
+# evaluated; configs/experiment/cornell_comparison.yaml), then its report:
+# results/cornell_comparison/report/report.md. Finished runs are kept: a re-run only redoes what is missing.
 demo: $(STAMP)
+	@$(PY) experiments/run.py +experiment=cornell_comparison; rc=$$?; \
+	$(PY) experiments/report.py results/cornell_comparison || exit 1; exit $$rc
+
+# The stage-by-stage tour of the pipeline (G-buffer, SDF slice, reference, placement, bake, export).
+demo-stages: $(STAMP)
 	$(PY) -m probeplace demo --config configs/demo.yaml
 
 # pytest exits 5 when it collected no test: that is neither a pass nor a fail we accept.
@@ -53,6 +61,12 @@ lint: $(STAMP)
 
 bench: $(TOOLS)
 	for b in benchmarks/[a-z]*.py; do $(PY) $$b || exit 1; done
+
+# Sweeps on Ray (hydra/launcher=ray): ray and the launcher's other requirements, then the launcher itself
+# without its boto3 requirement (AWS autoscaling only; it cannot be resolved next to python-dateutil 4).
+cluster: $(STAMP)
+	$(PY) -m pip install -q -c constraints.txt -e '.[dev,cluster]'
+	$(PY) -m pip install -q --no-deps -c constraints.txt hydra-ray-launcher==1.2.2
 
 clean-venv:
 	rm -rf $(VENV) node_modules

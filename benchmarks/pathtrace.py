@@ -1,6 +1,7 @@
 """Reference path tracer vs Mitsuba 3 on the Cornell box (same size, spp, depth), interleaved in one process.
 
     .venv/bin/python benchmarks/pathtrace.py [--size 256] [--spp 32] [--max-depth 8] [--repeats 3]
+        [--schedule compact|fused]
 
 Last stdout line: one JSON object, also written to benchmarks/results/pathtrace.json. Keys:
 ``cornell_spp_per_s`` (our path samples per second, steady state), ``mitsuba_spp_per_s``,
@@ -10,7 +11,8 @@ relMSE = mean((a − b)² / (b² + 0.01))) with ``noise_floor`` (the relMSE expe
 variance alone), ``compile_s`` (first call minus a steady call of the same work; compile is not in
 the rates), ``bake_texel_samples_per_s`` (path samples per second while baking light-field probes in
 the Cornell box: probes × texels × jittered rays × spp over the median bake time, compile apart) with
-``bake_compile_s``.
+``bake_compile_s``; ``schedule`` (``RenderConfig.schedule`` of the Cornell render, ``--schedule``;
+the bake always uses the default).
 """
 
 from __future__ import annotations
@@ -76,6 +78,7 @@ def main(argv=None) -> dict:
     ap.add_argument("--spp", type=int, default=32)
     ap.add_argument("--max-depth", type=int, default=8)
     ap.add_argument("--repeats", type=int, default=3)
+    ap.add_argument("--schedule", default="compact", help="RenderConfig.schedule: compact or fused")
     args = ap.parse_args(argv)
     size, spp, depth, reps = args.size, args.spp, args.max_depth, args.repeats
     n_samples = size * size * spp
@@ -83,7 +86,14 @@ def main(argv=None) -> dict:
     scene = cornell_box()
     # specular = 0: Lambertian materials, the same BSDF as Mitsuba's `diffuse`.
     cfg = RenderConfig(
-        width=size, height=size, spp=spp, max_depth=depth, rr_depth=5, specular=0.0, progress=False
+        width=size,
+        height=size,
+        spp=spp,
+        max_depth=depth,
+        rr_depth=5,
+        specular=0.0,
+        progress=False,
+        schedule=args.schedule,
     )
 
     import mitsuba as mi
@@ -114,7 +124,9 @@ def main(argv=None) -> dict:
     from probeplace.render._render import _batch_layout
 
     _, g = _batch_layout(cfg, size * size)
-    warm_cfg = RenderConfig(width=size, height=size, spp=g, max_depth=depth, specular=0.0, progress=False)
+    warm_cfg = RenderConfig(
+        width=size, height=size, spp=g, max_depth=depth, specular=0.0, progress=False, schedule=args.schedule
+    )
     t0 = time.perf_counter()
     jax.block_until_ready(render(scene, "front", warm_cfg, key=jax.random.key(10_000)).mean)
     first_ours = time.perf_counter() - t0
@@ -147,6 +159,7 @@ def main(argv=None) -> dict:
         "mitsuba_spp_per_s": n_samples / med_mi,
         "cornell_vs_mitsuba": med_mi / med_ours,
         "mitsuba_variant": variant,
+        "schedule": args.schedule,
         "cornell_rel_mse_vs_mitsuba": rel_mse,
         "noise_floor": floor,
         # First call minus the steady-state time of the same amount of work.

@@ -3,7 +3,9 @@
 Last stdout line: one JSON object, also written to benchmarks/results/placement.json. Times are one cold
 run each in a fresh process state (SDF build from the on-disk cache if present, XLA compilation and the
 search included), since placement runs once per scene; compile time is not separable from the search's
-many small jitted calls and is reported inside ``*_timings``.
+many small jitted calls and is reported inside ``*_timings``. ``*_place_cpu_s`` is the process CPU time
+(all threads) of the same call: on a shared machine the wall time depends on the other jobs, the CPU time
+much less. ``visibility`` names the binary-visibility caster of the search (Embree when embreex imports).
 """
 
 from __future__ import annotations
@@ -22,9 +24,14 @@ def run(scene_name: str) -> dict:
     from probeplace.scene import load_scene
 
     scene = load_scene(scene_name)
-    t0 = time.perf_counter()
+    t0, c0 = time.perf_counter(), time.process_time()
     probes, meta = place(scene, budget="auto")
-    return {"s": time.perf_counter() - t0, "probes": probes.capacity, "meta": meta}
+    return {
+        "s": time.perf_counter() - t0,
+        "cpu_s": time.process_time() - c0,
+        "probes": probes.capacity,
+        "meta": meta,
+    }
 
 
 def main() -> None:
@@ -35,12 +42,17 @@ def main() -> None:
         cornell_auto_probes=c["probes"],
         cornell_auto_coverage=c["meta"]["coverage"],
         cornell_place_s=round(c["s"], 2),
+        cornell_place_cpu_s=round(c["cpu_s"], 2),
+        visibility=c["meta"].get("visibility"),
         cornell_timings=c["meta"]["timings"],
     )
     try:
         s = run("crytek_sponza")
         out.update(
             sponza_place_s=round(s["s"], 2),
+            sponza_place_cpu_s=round(s["cpu_s"], 2),
+            sponza_n_samples=s["meta"]["n_samples"],
+            sponza_n_candidates=s["meta"]["n_candidates"],
             sponza_auto_coverage=s["meta"]["coverage"],
             sponza_auto_probes=s["probes"],
             sponza_timings=s["meta"]["timings"],

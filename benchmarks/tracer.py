@@ -10,9 +10,13 @@ is measured apart (``.lower().compile()``); timings are medians of interleaved r
 Embree 1 thread). ``hiz_vs_two_level_steps`` is mean texel steps of hi-Z over two-level on the same rays
 (Wang 2019 §4.2 reports ≥ 30% fewer steps, i.e. a ratio ≤ 0.7, at 512² maps).
 
-Not measured yet (reported as null): ``cornell_glossy_mse`` / ``cornell_glossy_noise_floor`` (probe shading
-and evaluation are not implemented, docs/tracer.md). ``gpu`` is null without a CUDA device; with one it
-holds the 1920×1080-ray trace time.
+``cornell_glossy_mse`` / ``cornell_glossy_noise_floor``: ``probeplace.evaluate.evaluate`` on the Cornell box
+"front" view (4×4×4 grid baked with the path tracer, light-field shading; image, spp and map resolution in
+``cornell_eval``): the glossy-indirect MSE against the common-random-number reference and that
+reference's noise floor (docs/evaluate.md). ``gpu`` is null when ``jax.devices("gpu")`` finds no CUDA
+device; with one it holds ``gpu_*`` figures: the 1920×1080-ray trace time and the 1920×1080 glossy-indirect
+frame time (one GGX-like secondary ray per pixel traced through the probes and read from the baked maps),
+to set beside McGuire 2017's 4.4 ms (Living Room, GTX 1080).
 Last stdout line: one JSON object, also written to benchmarks/results/tracer.json.
 """
 
@@ -123,6 +127,79 @@ def bench_scene(scene, dims, res, n_rays, repeats, seed=0):
     return out, lf
 
 
+def cornell_eval(scene, quick: bool) -> dict:
+    """Glossy MSE and noise floor of a 4×4×4 path-traced bake on the Cornell box (docs/evaluate.md)."""
+    from probeplace.evaluate import EvalConfig, evaluate
+    from probeplace.probes import path_traced_radiance
+    from probeplace.render import default_caster
+
+    caster = default_caster(scene)
+    res, size, spp, bake_spp = (16, 16, 8, 4) if quick else (32, 32, 32, 16)
+    pos = grid_positions(scene, (4, 4, 4))
+    probes = ProbeSet(pos_world=jnp.asarray(pos, jnp.float32), active=jnp.ones(len(pos), bool))
+    cfg = BakeConfig(radiance_res=res, n_sub=1, probes_per_batch=16, progress=False)
+    t0 = time.perf_counter()
+    lf = bake_probes(
+        scene,
+        probes,
+        caster=caster,
+        radiance_fn=path_traced_radiance(scene, spp=bake_spp, caster=caster),
+        key=jax.random.key(0),
+        config=cfg,
+    )
+    bake_s = time.perf_counter() - t0
+    config = EvalConfig(width=size, height=size, spp=spp, glossy_spp=4, glossy_ref_spp=4, timing_repeats=3)
+    m = evaluate(scene, lf, view="front", config=config, caster=caster).metrics
+    keep = (
+        "mse_glossy_indirect",
+        "noise_floor_glossy_indirect",
+        "mse_glossy_indirect_no_crn",
+        "mse_diffuse_indirect",
+        "noise_floor_diffuse_indirect",
+        "mse_full",
+        "noise_floor_full",
+        "unresolved_share",
+        "shading_s_per_frame",
+        "shading_compile_s",
+        "width",
+        "height",
+        "spp",
+        "glossy_spp",
+    )
+    return {k: m[k] for k in keep} | {"radiance_res": res, "bake_spp": bake_spp, "bake_s": bake_s}
+
+
+def gpu_figures(scene, repeats: int) -> dict:
+    """1920×1080 rays on the GPU: light-field trace time and glossy-indirect frame time (trace + read)."""
+    from probeplace.probes import glossy_radiance
+
+    lf, _ = bake_grid(scene, (4, 4, 4), 64, EmbreeCaster(scene))
+    o, d = shading_rays(scene, EmbreeCaster(scene), 1920 * 1080, 1)
+    o, d = jnp.asarray(o), jnp.asarray(d)
+    tr = make_tracer(lf, scene.bounds)
+    c = trace_light_field.lower(tr, o, d).compile()
+    jax.block_until_ready(c(tr, o, d))
+    glossy = lambda: glossy_radiance(tr, lf, o, d, include_emission=False, chunk=len(o))
+    t0 = time.perf_counter()
+    jax.block_until_ready(glossy())
+    compile_s = time.perf_counter() - t0
+    ts, tg = [], []
+    for _ in range(repeats):  # interleaved
+        t0 = time.perf_counter()
+        jax.block_until_ready(c(tr, o, d))
+        ts.append(time.perf_counter() - t0)
+        t0 = time.perf_counter()
+        jax.block_until_ready(glossy())
+        tg.append(time.perf_counter() - t0)
+    return {
+        "gpu_cornell_1080p_trace_ms": 1e3 * statistics.median(ts),
+        "gpu_cornell_1080p_glossy_ms": 1e3 * statistics.median(tg),
+        "gpu_glossy_first_call_s": compile_s,
+        "rays": int(o.shape[0]),
+        "device": str(jax.devices("gpu")[0]),
+    }
+
+
 def main(argv=None) -> dict:
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--rays", type=int, default=20000)
@@ -153,24 +230,15 @@ def main(argv=None) -> dict:
         result["sponza_lf_rays_per_s"] = sponza["lf_rays_per_s"]
         result["sponza_lf_vs_embree_1t"] = sponza["lf_rays_per_s"] / sponza["embree_1t_rays_per_s"]
         result["sponza_hiz_vs_two_level_steps"] = sponza["steps_hiz"] / sponza["steps_two_level"]
-    result["cornell_glossy_mse"] = None
-    result["cornell_glossy_noise_floor"] = None
-    result["glossy_note"] = "probe shading / evaluation not implemented yet (docs/tracer.md)"
-    if jax.default_backend() == "gpu":
-        scene = load_scene("cornell_box")
-        lf, _ = bake_grid(scene, (4, 4, 4), 64, EmbreeCaster(scene))
-        o, d = shading_rays(scene, EmbreeCaster(scene), 1920 * 1080, 1)
-        tr = make_tracer(lf, scene.bounds)
-        c = trace_light_field.lower(tr, jnp.asarray(o), jnp.asarray(d)).compile()
-        jax.block_until_ready(c(tr, jnp.asarray(o), jnp.asarray(d)))
-        ts = []
-        for _ in range(args.repeats):
-            t0 = time.perf_counter()
-            jax.block_until_ready(c(tr, jnp.asarray(o), jnp.asarray(d)))
-            ts.append(time.perf_counter() - t0)
-        result["gpu"] = {"cornell_1080p_trace_ms": 1e3 * statistics.median(ts), "rays": len(o)}
-    else:
-        result["gpu"] = None
+    ev = cornell_eval(load_scene("cornell_box"), quick=args.quick)
+    result["cornell_eval"] = ev
+    result["cornell_glossy_mse"] = ev["mse_glossy_indirect"]
+    result["cornell_glossy_noise_floor"] = ev["noise_floor_glossy_indirect"]
+    try:
+        gpus = jax.devices("gpu")
+    except RuntimeError:
+        gpus = []
+    result["gpu"] = gpu_figures(load_scene("cornell_box"), args.repeats) if gpus else None
     write_result("tracer", result)
     return result
 

@@ -14,7 +14,6 @@ SHARED_SCENES = Path(
 )
 
 
-
 def shared_scene_path(name: str) -> Path:
     """Path of an external scene from ../shared/scenes; skips the test with the reason if absent."""
     path = SHARED_SCENES / name

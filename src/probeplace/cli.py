@@ -94,6 +94,7 @@ def _cmd_place(args: argparse.Namespace) -> int:
         objective=args.objective,
         seed=args.seed,
         target=args.target,
+        **({"options": _place_options(args.option)} if args.option else {}),
     )
     out = Path(args.out)
     meta["scene"] = args.scene
@@ -110,6 +111,22 @@ def _cmd_place(args: argparse.Namespace) -> int:
         f"{meta['timings']['total_s']:.1f} s -> {out}, {png}"
     )
     return 0
+
+
+def _place_options(items: list[str]) -> dict:
+    """``KEY=VALUE`` pairs of ``place --option``; values are Python literals (``3,3,3``: a tuple) or text."""
+    import ast
+
+    out = {}
+    for item in items:
+        key, sep, text = item.partition("=")
+        if not sep or not key.strip():
+            raise ProbeplaceError(f"--option must be KEY=VALUE, got {item!r}")
+        try:
+            out[key.strip()] = ast.literal_eval(text.strip())
+        except (ValueError, SyntaxError):
+            out[key.strip()] = text.strip()
+    return out
 
 
 def _positive_int(text: str) -> int:
@@ -135,7 +152,21 @@ def build_parser() -> argparse.ArgumentParser:
     # --- place (placement helper) ---
     pl = sub.add_parser("place", help="place probes in a scene and write a ProbeSet JSON file + top view")
     pl.add_argument("scene", help="scene name or file (see `probeplace scenes`)")
-    pl.add_argument("--method", default="skeleton+medial", choices=["skeleton", "medial", "skeleton+medial"])
+    pl.add_argument(
+        "--method",
+        default="skeleton+medial",
+        choices=["skeleton", "medial", "skeleton+medial", "grid", "lod-grid", "vardis"],
+        help="seed method, or a baseline: grid, lod-grid (Yang 2023), vardis (Vardis 2021)",
+    )
+    pl.add_argument(
+        "-o",
+        "--option",
+        action="append",
+        default=[],
+        metavar="KEY=VALUE",
+        help="baseline option, repeatable (e.g. -o dims=8,8,8 -o inside=relocate; -o levels=2; "
+        "-o dense_probes=512 -o tolerance=0.05); see docs/baselines.md",
+    )
     pl.add_argument("--budget", default="auto", help="'auto' (fewest probes to the target) or a count")
     pl.add_argument(
         "--refiner",
@@ -149,6 +180,9 @@ def build_parser() -> argparse.ArgumentParser:
     pl.add_argument("--png", default=None, help="top view PNG (default: --out with .png)")
     pl.set_defaults(func=_cmd_place)
     _add_export_parser(sub)
+    from .evaluate._cli import add_parser as _add_evaluate  # --- evaluate (issue 4) ---
+
+    _add_evaluate(sub)
     return p
 
 

@@ -15,3 +15,37 @@ class ConfigError(ProbeplaceError, ValueError):
 
 class ResourceError(ProbeplaceError, MemoryError):
     """A derived size (grid, image, batch) would not fit in memory; refused before allocating."""
+
+
+# --- RELIAB: up-front memory checks (issue 9) ---
+MAX_BYTES_ENV = "PROBEPLACE_MAX_BYTES"
+
+
+def memory_limit_bytes() -> int:
+    """Largest derived allocation probeplace attempts: ``$PROBEPLACE_MAX_BYTES`` if set, else half the
+    machine's physical memory (a single array or batch above it would swap or be OOM-killed)."""
+    import os
+
+    env = os.environ.get(MAX_BYTES_ENV)
+    if env:
+        return int(float(env))
+    try:
+        return os.sysconf("SC_PHYS_PAGES") * os.sysconf("SC_PAGE_SIZE") // 2
+    except (ValueError, OSError, AttributeError):  # no sysconf (Windows): assume 16 GiB
+        return 8 << 30
+
+
+def check_memory(need_bytes: int, what: str, hint: str) -> None:
+    """Raise :class:`ResourceError` naming the estimate when ``need_bytes`` exceeds the memory limit.
+
+    Args:
+        need_bytes: estimated bytes the operation would allocate.
+        what: what would be allocated, e.g. ``"bake of 10 probes at radiance_res=4096"``.
+        hint: how to make it fit.
+    """
+    limit = memory_limit_bytes()
+    if need_bytes > limit:
+        raise ResourceError(
+            f"{what} needs ~{int(need_bytes)} bytes ({need_bytes / 2**30:.1f} GiB), over the limit of "
+            f"{limit} bytes (half the physical memory; ${MAX_BYTES_ENV} overrides); {hint}"
+        )

@@ -1,1 +1,27 @@
-"""experiment stage (see DESIGN.md)."""
+"""experiment stage (see DESIGN.md): Hydra config schemas, ``run(cfg) -> RunResult``, atomic results."""
+
+from ._report import load_runs as load_runs
+from ._report import make_report as make_report
+from ._report import pareto_front as pareto_front
+from ._results import DONE as DONE
+from ._results import is_complete as is_complete
+from ._results import iter_runs as iter_runs
+from ._run import EvaluationUnavailable as EvaluationUnavailable
+from ._run import RunResult as RunResult
+from ._run import failures as failures
+from ._run import load_experiment_scene as load_experiment_scene
+from ._run import run as run
+from ._run import run_dir as run_dir
+from ._run import run_name as run_name
+from ._schema import PLACERS as PLACERS
+from ._schema import BakeConfig as BakeConfig
+from ._schema import EvalConfig as EvalConfig
+from ._schema import ExperimentConfig as ExperimentConfig
+from ._schema import ExportConfig as ExportConfig
+from ._schema import PlacerConfig as PlacerConfig
+from ._schema import RefinerConfig as RefinerConfig
+from ._schema import SceneConfig as SceneConfig
+from ._schema import TracerConfig as TracerConfig
+from ._schema import register_configs as register_configs
+from ._schema import to_config as to_config
+from ._schema import validate as validate

@@ -78,7 +78,9 @@ class BVHCaster(AbstractRayCaster):
     box_steps: int = eqx.field(static=True)
     rounds: int = eqx.field(static=True)
     sort_rays: bool = eqx.field(static=True)
-    build_seconds: float = eqx.field(static=True)
+    # A leaf, not static: a timing differs for every build, and a static field would make every new
+    # caster (even over the same scene) a new jit cache key.
+    build_seconds: Float[Array, ""]
 
     def __init__(
         self,
@@ -116,8 +118,9 @@ class BVHCaster(AbstractRayCaster):
         self.box_steps = int(box_steps)
         self.rounds = int(rounds)
         self.sort_rays = bool(sort_rays)
-        self.build_seconds = time.perf_counter() - t0
-        log.info("BVH over %d triangles built in %.2f s", scene.n_triangles, self.build_seconds)
+        seconds = time.perf_counter() - t0
+        self.build_seconds = jnp.asarray(seconds, jnp.float32)
+        log.info("BVH over %d triangles built in %.2f s", scene.n_triangles, seconds)
 
     def _trace(self, origins, directions, t_max, any_hit):
         if origins.ndim != 2 or origins.shape[-1] != 3 or directions.shape != origins.shape:

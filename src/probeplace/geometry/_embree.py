@@ -135,5 +135,9 @@ class EmbreeCaster(AbstractRayCaster):
         t_max: Float[Array, " n_rays"] | float,
     ) -> Bool[Array, " n_rays"]:
         """True where any triangle is hit with ``0 < t < t_max`` (shadow rays)."""
+        return jnp.asarray(self.occluded_host(origins, directions, t_max))
+
+    def occluded_host(self, origins, directions, t_max) -> np.ndarray:
+        """:meth:`occluded` as a host (numpy) boolean array: no device round trip for host callers."""
         ids = self._run(origins, directions, t_max, "OCCLUDED")
-        return jnp.asarray(ids != -1)
+        return np.asarray(ids != -1)

@@ -3,9 +3,10 @@
 Coverage here is binary and at the evaluation density: the share of coverable surface area seen by at
 least one probe as its octahedral map decides it (:func:`binary_visibility`). The search:
 
-1. candidates = skeleton seeds ∪ medial-axis seeds (Wang §3.1), their visibility rows computed once;
+1. candidates = skeleton seeds ∪ medial-axis seeds (Wang §3.1);
 2. greedy weighted set cover: add the candidate that sees the most still-unseen area, until the target
-   is met or nothing adds area (the classic ln(n)-approximation, Chvátal 1979);
+   is met or nothing adds area (the classic ln(n)-approximation, Chvátal 1979), evaluated lazily
+   (Minoux 1978: stale gains in a max-heap are upper bounds, coverage being submodular);
 3. *adding where coverage is missing*: if the target is not met, new candidates are put in front of
    unseen samples — the deepest feasible point on the sample's normal from which it is seen head-on
    (:func:`witness_positions`) —, spread over the unseen area by farthest-point sampling, and step 2
@@ -13,7 +14,16 @@ least one probe as its octahedral map decides it (:func:`binary_visibility`). Th
 4. refinement in between: the chosen probes are refined on the soft union coverage (a
    :class:`AbstractRefiner`); the refined set is kept only if its binary coverage does not drop;
 5. *removing*: a probe whose removal keeps the coverage at the target is dropped (least unique area
-   first), until none can go.
+   first), until none can go. Removing probe j loses exactly its unique area, so this needs no trial
+   coverages: per-sample counts and unique owners are updated incrementally.
+
+**Coarse-to-fine** (large atlases, e.g. Sponza's 495 k samples): step 2 first scores every candidate on
+``search_samples`` coverable samples spread in space; the probes it picks are then cast at full density,
+the other candidates are scored on the still-unseen samples only (one that adds nothing there never will:
+the unseen set only shrinks), and so are the gap candidates of step 3. Each chosen probe's full row is
+cast once (the removal needs it). Rows only cover coverable samples. Below ``search_samples`` coverable
+samples (the Cornell box) the first pass is the exact greedy. docs/placement.md "Performance" has the
+measurements.
 
 The result records the coverage-vs-count curve (coverage after each greedy addition, then after each
 removal) next to the final set.
@@ -21,6 +31,7 @@ removal) next to the final set.
 
 from __future__ import annotations
 
+import heapq
 import logging
 import time
 
@@ -62,18 +73,93 @@ def _covered_area(vis_rows: np.ndarray, a: np.ndarray) -> float:
     return float((a * vis_rows.any(axis=0)).sum()) if len(vis_rows) else 0.0
 
 
-def _greedy(vis: np.ndarray, a: np.ndarray, chosen: list[int], target_area: float, curve: list) -> list[int]:
-    seen = vis[chosen].any(axis=0) if chosen else np.zeros(vis.shape[1], bool)
-    while (a * seen).sum() < target_area:
-        gain = (vis & ~seen[None]) @ a
-        gain[chosen] = -1.0
-        best = int(np.argmax(gain))
-        if gain[best] <= 0:
+def _row_gains(vis: np.ndarray, a: np.ndarray, seen: np.ndarray) -> np.ndarray:
+    """(vis & ~seen) @ a, a few rows at a time (no (rows × samples) float temporary)."""
+    w = np.where(seen, 0.0, a)
+    out = np.empty(len(vis))
+    step = max(1, (1 << 22) // max(vis.shape[1], 1))
+    for s in range(0, len(vis), step):
+        out[s : s + step] = vis[s : s + step] @ w
+    return out
+
+
+def _greedy(
+    vis: np.ndarray,
+    a: np.ndarray,
+    seen: np.ndarray,
+    target_area: float,
+    *,
+    limit: int | None = None,
+) -> list[int]:
+    """Lazy greedy weighted set cover (Minoux 1978): rows of ``vis`` added until ``target_area`` is seen.
+
+    Gains only shrink as ``seen`` grows (submodularity), so a stale gain is an upper bound: the top of a
+    max-heap is re-evaluated and taken when it still beats the next stale gain. Same choices as the plain
+    greedy (ties aside), with a handful of row evaluations per pick instead of all rows.
+
+    Args:
+        vis: (n_candidates, n) visibility rows.
+        a: (n,) sample weights.
+        seen: (n,) already seen samples; updated in place.
+        target_area: stop once ``(a * seen).sum()`` reaches this.
+        limit: pick at most this many.
+
+    Returns:
+        Picked row indices, in order.
+    """
+    picked: list[int] = []
+    area = float(a[seen].sum())
+    if area >= target_area or len(vis) == 0:
+        return picked
+    gain = _row_gains(vis, a, seen)
+    heap = [(-g, i) for i, g in enumerate(gain) if g > 0]
+    heapq.heapify(heap)
+    while heap and area < target_area and (limit is None or len(picked) < limit):
+        _, i = heapq.heappop(heap)
+        g = float(a[vis[i] & ~seen].sum())
+        if g <= 0:
+            continue
+        if heap and g < -heap[0][0]:
+            heapq.heappush(heap, (-g, i))
+            continue
+        picked.append(i)
+        seen |= vis[i]
+        area = float(a[seen].sum())
+    return picked
+
+
+def _remove_redundant(rows: np.ndarray, a: np.ndarray, goal: float, curve: list) -> list[int]:
+    """Drop probes (least unique area first) while the covered area stays ≥ ``goal``; kept row indices.
+
+    Vectorised form of "try removing each probe, recompute coverage": removing probe j loses exactly its
+    unique area (samples only j sees), so the least-unique probe is removable iff any is; per-sample
+    counts and the unique owner of singly-seen samples are updated incrementally.
+    """
+    rows = rows.copy()
+    k = len(rows)
+    alive = np.ones(k, bool)
+    count = rows.sum(axis=0, dtype=np.int32)
+    covered = float(a[count > 0].sum())
+    owner = np.full(rows.shape[1], -1, np.int64)
+    one = count == 1
+    owner[one] = rows[:, one].argmax(axis=0)
+    while alive.sum() > 1:
+        single = count == 1
+        unique = np.bincount(owner[single], weights=a[single], minlength=k)
+        unique[~alive] = np.inf
+        j = int(np.argmin(unique))
+        if not covered - unique[j] >= goal:
             break
-        chosen.append(best)
-        seen |= vis[best]
-        curve.append((len(chosen), float((a * seen).sum())))
-    return chosen
+        alive[j] = False
+        cols = np.flatnonzero(rows[j])
+        rows[j] = False
+        count[cols] -= 1
+        covered = float(a[count > 0].sum())
+        now_one = cols[count[cols] == 1]
+        if len(now_one):
+            owner[now_one] = rows[:, now_one].argmax(axis=0)
+        curve.append((int(alive.sum()), covered))
+    return [int(i) for i in np.flatnonzero(alive)]
 
 
 def _gap_candidates(
@@ -81,7 +167,6 @@ def _gap_candidates(
 ) -> np.ndarray:
     """Positions in front of unseen samples (farthest-point spread), feasible and in the box."""
     x = np.asarray(problem.position, np.float64)[unseen]
-    np.asarray(problem.normal, np.float64)[unseen]
     if len(x) == 0:
         return np.zeros((0, 3), np.float32)
     # farthest-point sampling over the unseen samples
@@ -101,6 +186,27 @@ def _coverage_of(vis: np.ndarray, a: np.ndarray) -> float:
     return _covered_area(vis, a) / max(a.sum(), 1e-300)
 
 
+def _search_subset(cols: np.ndarray, m: int, x: np.ndarray, rng: np.random.Generator) -> np.ndarray:
+    """``m`` of the samples ``cols``, spread in space: one random sample per occupied cell of a grid
+    fine enough to hold ~m of them, then random ones to fill up (positions of ``cols`` are ``x``)."""
+    if len(cols) <= m:
+        return cols
+    lo, hi = x.min(axis=0), x.max(axis=0)
+    ext = np.maximum(hi - lo, 1e-12)
+    cell = float(np.prod(ext) / m) ** (1.0 / 3.0)
+    ijk = np.floor((x - lo) / cell).astype(np.int64)
+    perm = rng.permutation(len(cols))
+    key = (ijk[perm, 0] * 1_000_003 + ijk[perm, 1]) * 1_000_003 + ijk[perm, 2]
+    _, first = np.unique(key, return_index=True)
+    pick = perm[first]
+    if len(pick) > m:
+        pick = rng.choice(pick, m, replace=False)
+    elif len(pick) < m:
+        rest = np.setdiff1d(np.arange(len(cols)), pick)
+        pick = np.concatenate([pick, rng.choice(rest, m - len(pick), replace=False)])
+    return np.sort(cols[pick])
+
+
 def auto_budget(
     problem: PlacementProblem,
     *,
@@ -113,12 +219,13 @@ def auto_budget(
     gap_candidates: int = 32,
     max_probes: int | None = None,
     caster=None,
+    search_samples: int | None = 32768,
 ) -> AutoResult:
     """Fewest probes reaching ``target`` coverage (module docstring).
 
     Args:
         problem: the fitness model at the evaluation density (binary coverage is measured on it).
-        key: PRNG key (gap-candidate spread and refinement).
+        key: PRNG key (gap-candidate spread, search subset and refinement).
         target: coverage share to reach, in (0, 1].
         refiner: refines the chosen set on ``refine_problem`` (soft objective); ``None``: no refinement.
         refine_problem: a (smaller) problem for the refiner; default ``problem``.
@@ -126,13 +233,19 @@ def auto_budget(
         max_rounds: rounds of gap candidates before giving up.
         gap_candidates: unseen samples used per round.
         max_probes: stop adding beyond this count.
-        caster: optional exact ray caster for the binary visibility.
+        caster: optional exact ray caster for the binary visibility (e.g. ``make_caster(scene, "embree")``);
+            default the SDF sphere tracer.
+        search_samples: the first greedy pass scores the candidates on at most this many coverable samples
+            (spread in space); the chosen probes are then checked, and completed, at full density. ``None``:
+            every coverable sample from the start (module docstring, "coarse-to-fine").
 
     Raises:
-        ConfigError: target outside (0, 1].
+        ConfigError: target outside (0, 1], or ``search_samples`` not positive.
     """
     if not (0.0 < target <= 1.0):
         raise ConfigError(f"target coverage must be in (0, 1], got {target}")
+    if search_samples is not None and search_samples < 1:
+        raise ConfigError(f"search_samples must be positive or None, got {search_samples}")
     timings: dict[str, float] = {}
     t0 = time.perf_counter()
     if candidates is None:
@@ -140,62 +253,90 @@ def auto_budget(
     timings["seeds_s"] = time.perf_counter() - t0
     cand = np.asarray(candidates, np.float32).reshape(-1, 3)
     cand = cand[probe_clearance(problem, cand) >= float(problem.clearance)]
-    a = np.asarray(problem.area, np.float64) * np.asarray(problem.coverable)
+    a_all = np.asarray(problem.area, np.float64) * np.asarray(problem.coverable)
+    # Only coverable samples count: every row below is over these columns.
+    cols = np.flatnonzero(a_all > 0)
+    a = a_all[cols]
     total = a.sum()
     # Numerically "all": a target of 1 means every coverable sample.
     target_area = target * total * (1.0 - 1e-9)
-    t0 = time.perf_counter()
-    vis = binary_visibility(problem, cand, caster=caster)
-    timings["visibility_s"] = time.perf_counter() - t0
     rng = np.random.default_rng(np.asarray(jax.random.key_data(key)).ravel()[-1:].astype(np.uint32))
-    curve: list = []
-    chosen: list[int] = []
-    t_greedy = time.perf_counter()
-    for _ in range(max_rounds + 1):
-        chosen = _greedy(vis, a, chosen, target_area, curve)
-        if max_probes is not None and len(chosen) > max_probes:
-            chosen = chosen[:max_probes]
-        seen = vis[chosen].any(axis=0) if chosen else np.zeros(len(a), bool)
-        if (a * seen).sum() >= target_area:
-            break
-        new = _gap_candidates(problem, (a > 0) & ~seen, gap_candidates, rng)
-        if len(new) == 0:
-            break
+    timings["visibility_s"] = 0.0
+
+    def vis_of(p: np.ndarray, c: np.ndarray) -> np.ndarray:
         t1 = time.perf_counter()
-        vis = np.concatenate([vis, binary_visibility(problem, new, caster=caster)])
+        v = binary_visibility(problem, p, caster=caster, samples=cols[c])
         timings["visibility_s"] += time.perf_counter() - t1
-        cand = np.concatenate([cand, new])
-    timings["greedy_s"] = time.perf_counter() - t_greedy - 0.0
+        return v
+
+    limit = None if max_probes is None else int(max_probes)
+    t_greedy = time.perf_counter()
+    # 1. coarse pass: every candidate scored on a spread subset of the coverable samples
+    sub = np.arange(len(cols))
+    if search_samples is not None and len(cols) > search_samples:
+        sub = _search_subset(sub, int(search_samples), np.asarray(problem.position)[cols], rng)
+    v_sub = vis_of(cand, sub)
+    seen_sub = np.zeros(len(sub), bool)
+    chosen = _greedy(v_sub, a[sub], seen_sub, target * a[sub].sum() * (1.0 - 1e-9), limit=limit)
+    del v_sub
+    full = len(sub) == len(cols)
+    # Candidates that add nothing on the unseen samples never will (the unseen set only shrinks).
+    dead = np.zeros(len(cand), bool)
+    if full:
+        dead[:] = True
+    # 2. fine pass: the chosen probes at full density; candidates scored on what is still unseen, then
+    #    gap candidates in front of unseen samples (Wang's "adding where coverage is missing")
+    rows = vis_of(cand[chosen], np.arange(len(cols))) if chosen else np.zeros((0, len(cols)), bool)
+    seen = rows.any(axis=0) if len(rows) else np.zeros(len(cols), bool)
+    for _ in range(max_rounds + 1):
+        if a[seen].sum() >= target_area or (limit is not None and len(chosen) >= limit):
+            break
+        unseen = np.flatnonzero(~seen)
+        dead[chosen] = True
+        rest = np.flatnonzero(~dead)
+        if len(rest):
+            v_u = vis_of(cand[rest], unseen)
+            dead[rest[~v_u.any(axis=1)]] = True
+            s_u = np.zeros(len(unseen), bool)
+            left = None if limit is None else limit - len(chosen)
+            picks = _greedy(v_u, a[unseen], s_u, target_area - a[seen].sum(), limit=left)
+            if picks:
+                # what they add is known from the rows on the unseen samples; full rows come at the end
+                chosen += [int(rest[i]) for i in picks]
+                seen[unseen] = s_u
+                continue
+        dead[:] = True
+        unseen_all = np.zeros(len(a_all), bool)
+        unseen_all[cols[unseen]] = True
+        gaps = _gap_candidates(problem, unseen_all, gap_candidates, rng)
+        if len(gaps) == 0:
+            break
+        cand = np.concatenate([cand, gaps])
+        dead = np.concatenate([dead, np.zeros(len(gaps), bool)])
+    if len(chosen) > len(rows):
+        rows = np.concatenate([rows, vis_of(cand[chosen[len(rows) :]], np.arange(len(cols)))])
+    timings["greedy_s"] = time.perf_counter() - t_greedy
     pos = cand[chosen]
-    rows = vis[chosen]
+    # the coverage-vs-count curve of the additions, at full density
+    curve: list = []
+    acc = np.zeros(len(cols), bool)
+    for r in rows:
+        acc |= r
+        curve.append((len(curve) + 1, float(a[acc].sum())))
     cov = _coverage_of(rows, a)
     # Refinement between adding and removing: keep it only if the binary coverage does not drop.
     if refiner is not None and len(pos):
         t1 = time.perf_counter()
         res = refiner.refine(refine_problem or problem, jnp.asarray(pos), key=key)
         new_pos = np.asarray(res.pos, np.float32)
-        new_rows = binary_visibility(problem, new_pos, caster=caster)
+        new_rows = vis_of(new_pos, np.arange(len(cols)))
         new_cov = _coverage_of(new_rows, a)
         if new_cov >= cov and np.all(probe_clearance(problem, new_pos) >= float(problem.clearance)):
             pos, rows, cov = new_pos, new_rows, new_cov
         timings["refine_s"] = time.perf_counter() - t1
     # Removal: drop probes (least unique area first) while the coverage stays at the target.
     t1 = time.perf_counter()
-    goal = min(cov * total, target_area)
-    keep = list(range(len(pos)))
-    changed = True
-    while changed and len(keep) > 1:
-        changed = False
-        r = rows[keep]
-        count = r.sum(axis=0)
-        unique = (r & (count == 1)[None]) @ a
-        for j in np.argsort(unique):
-            trial = [k for i, k in enumerate(keep) if i != j]
-            if _covered_area(rows[trial], a) >= goal:
-                keep = trial
-                curve.append((len(keep), _covered_area(rows[keep], a)))
-                changed = True
-                break
+    keep = _remove_redundant(rows, a, min(cov * total, target_area), curve) if len(rows) else []
     pos, rows = pos[keep], rows[keep]
     timings["remove_s"] = time.perf_counter() - t1
     cov = _coverage_of(rows, a)

@@ -95,6 +95,10 @@ class FitnessConfig(eqx.Module):
             v = getattr(self, name)
             if not (isinstance(v, int | float) and math.isfinite(v) and v >= 0):
                 raise ConfigError(f"FitnessConfig.{name} must be a non-negative number, got {v!r}")
+        for name in ("map_res", "n_steps"):
+            v = getattr(self, name)
+            if isinstance(v, bool) or not isinstance(v, int | np.integer):
+                raise ConfigError(f"FitnessConfig.{name} must be an integer, got {v!r}")
         if self.map_res < 1 or self.n_steps < 2:
             raise ConfigError("FitnessConfig: map_res ≥ 1 and n_steps ≥ 2 are required")
 
@@ -152,8 +156,22 @@ def _normal_march(grid: SDFGrid, lo, hi, clearance: float, diag: float, position
     h = float(grid.voxel_size)
     t = np.geomspace(2.0 * h, max(0.5 * diag, 4.0 * h), 40).astype(np.float32)
     tau = h * math.sqrt(3.0) / 2.0
-    tt = jnp.asarray(t)
-    dt = jnp.asarray(np.diff(t))
+    # one jitted program (eager, the march's setup ops compiled one by one)
+    return _normal_march_jit(
+        grid,
+        jnp.asarray(lo),
+        jnp.asarray(hi),
+        jnp.float32(clearance),
+        jnp.float32(tau),
+        jnp.asarray(t),
+        jnp.asarray(np.diff(t)),
+        jnp.asarray(position),
+        jnp.asarray(normal),
+    )
+
+
+@eqx.filter_jit
+def _normal_march_jit(grid: SDFGrid, lo, hi, clearance, tau, tt, dt, position, normal):
 
     def one(x, n):
         q = x[None, :] + tt[:, None] * n[None, :]
@@ -190,16 +208,21 @@ def coverable_mask(
 
 def witness_positions(problem: PlacementProblem, idx: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """For samples ``idx``: (has a witness, the deepest feasible point on the normal that sees it head-on)."""
+    idx = np.asarray(idx, np.int64).ravel()
+    n = len(idx)
+    # padded to a power of two: the search calls this with varying counts, a few compilations serve all
+    pad = np.zeros(max(8, 1 << max(n - 1, 0).bit_length()), np.int64)
+    pad[:n] = idx
     ok, q = _normal_march(
         problem.grid,
         problem.lo,
         problem.hi,
         float(problem.clearance),
         float(problem.diag),
-        problem.position[idx],
-        problem.normal[idx],
+        problem.position[pad],
+        problem.normal[pad],
     )
-    return np.asarray(ok), np.asarray(q, np.float32)
+    return np.asarray(ok)[:n], np.asarray(q, np.float32)[:n]
 
 
 def make_problem(
@@ -404,46 +427,62 @@ def coverage_objective(
 # ----------------------------------------------------------------------------------------------------
 # Binary versions (reporting)
 
-_CHUNK = 1 << 16
+_CHUNK = 1 << 16  # rays per jitted trace (SDF tracer, jittable casters): one compilation
+_HOST_CHUNK = 1 << 20  # rays per call of a host caster (Embree): large batches keep its threads busy
 
 
-def binary_visibility(problem: PlacementProblem, pos, *, caster=None) -> np.ndarray:
+def binary_visibility(problem: PlacementProblem, pos, *, caster=None, samples=None) -> np.ndarray:
     """Binary visibility (n_probes, n_samples) as the probes' octahedral maps decide it (module docstring).
+
+    Sample x (distance d from probe p) is visible when nothing is hit on the segment from p toward x
+    before d − tol, tol = max(2h, d·θ/2) the map's texel footprint (θ = √(4π)/R): the depth a texel of an
+    R×R map stores is then no nearer than the sample minus the texel's extent, so the sample is in the
+    map. With an exact caster this is one occlusion (any-hit) ray per (probe, facing sample) pair with
+    t_max = d − tol; with the SDF tracer it is the first sphere-traced hit compared with d − tol. Both
+    decide the same predicate; they differ only where the SDF (voxel h) blurs geometry thinner than ~h.
 
     Args:
         problem: the fitness model.
         pos: probe positions (n_probes, 3), host or device array.
         caster: optional exact ray caster (``geometry`` :class:`AbstractRayCaster`); default the SDF tracer.
+            An :class:`~probeplace.geometry.EmbreeCaster` is used on the host (occlusion rays, threaded).
+        samples: optional indices of the samples to test (columns of the result); default all.
 
     Returns:
-        Host boolean array; coverable-ness is not applied (use :func:`binary_coverage`).
+        Host boolean array (n_probes, n_samples or len(samples)); coverable-ness is not applied (use
+        :func:`binary_coverage`).
     """
     pos = np.asarray(pos, np.float32).reshape(-1, 3)
     x = np.asarray(problem.position, np.float32)
     nrm = np.asarray(problem.normal, np.float32)
+    if samples is not None:
+        sel = np.asarray(samples, np.int64).ravel()
+        x, nrm = x[sel], nrm[sel]
     h = float(problem.voxel)
     theta = _texel_angle(problem.config.map_res)
     out = np.zeros((len(pos), len(x)), bool)
-    if len(pos) == 0:
+    if len(pos) == 0 or len(x) == 0:
         return out
-    inside = np.asarray(jax.vmap(lambda p: sdf_value(problem.grid, p))(jnp.asarray(pos))) <= 0.0
-    # The rays of several probes share the fixed-size trace chunks (a probe's few thousand facing samples
-    # would otherwise pad a whole chunk): probes are gathered until a chunk is full, then traced at once.
+    inside = probe_clearance(problem, pos) <= 0.0
+    host = hasattr(caster, "occluded_host")
+    chunk = _HOST_CHUNK if host else _CHUNK
+    # The rays of several probes share one cast (a probe's few thousand facing samples would otherwise
+    # pad a whole chunk): probes are gathered until a chunk is full, then cast at once.
     batch: list[tuple[int, np.ndarray, np.ndarray, np.ndarray, np.ndarray]] = []
     n_batch = 0
 
     def flush():
         o = np.concatenate([np.broadcast_to(pos[k], (len(i), 3)) for k, i, _, _, _ in batch])
-        t = _trace(
-            problem.grid,
-            o,
-            np.concatenate([b[2] for b in batch]),
-            np.concatenate([b[3] for b in batch]),
-            caster,
-        )
+        u = np.concatenate([b[2] for b in batch])
+        reach = np.concatenate([b[4] for b in batch])  # d − tol: a hit nearer than this hides the sample
+        if host:
+            blocked = caster.occluded_host(o, u, reach)
+        else:
+            blocked = _blocked(problem.grid, o, u, np.concatenate([b[3] for b in batch]), reach, caster)
+        blocked &= reach > 0.0  # nothing can hide a sample closer than its own texel footprint
         s = 0
-        for k, idx, _, d, tol in batch:
-            out[k, idx] = ~(t[s : s + len(idx)] < d - tol)
+        for k, idx, _, _, _ in batch:
+            out[k, idx] = ~blocked[s : s + len(idx)]
             s += len(idx)
         batch.clear()
 
@@ -451,38 +490,47 @@ def binary_visibility(problem: PlacementProblem, pos, *, caster=None) -> np.ndar
         if inside[k]:
             continue
         v = x - pos[k][None]
-        d = np.linalg.norm(v, axis=-1)
-        u = v / np.maximum(d, 1e-30)[:, None]
-        cos = -np.sum(u * nrm, axis=-1)
+        d = np.sqrt(np.einsum("ij,ij->i", v, v))
         # Only rays that can count are traced: facing samples (unless two-sided).
-        todo = np.ones(len(x), bool) if problem.config.two_sided else cos > 0.0
-        idx = np.flatnonzero(todo)
-        if n_batch and n_batch + len(idx) > _CHUNK:
+        if problem.config.two_sided:
+            idx = np.flatnonzero(d > 0.0)
+        else:
+            idx = np.flatnonzero(np.einsum("ij,ij->i", v, nrm) < 0.0)
+        if n_batch and n_batch + len(idx) > chunk:
             flush()
             n_batch = 0
-        batch.append((k, idx, u[idx], d[idx], np.maximum(2.0 * h, d[idx] * theta / 2.0)))
+        dk = d[idx]
+        u = v[idx] / np.maximum(dk, 1e-30)[:, None]
+        batch.append((k, idx, u, dk, dk - np.maximum(2.0 * h, dk * (theta / 2.0))))
         n_batch += len(idx)
     if batch:
         flush()
     return out
 
 
-def _trace(grid: SDFGrid, o: np.ndarray, u: np.ndarray, tmax: np.ndarray, caster) -> np.ndarray:
-    """First-hit distance per ray (inf on a miss), in fixed-size chunks (one compilation)."""
+def _blocked(
+    grid: SDFGrid, o: np.ndarray, u: np.ndarray, d: np.ndarray, reach: np.ndarray, caster
+) -> np.ndarray:
+    """Whether each ray hits something with 0 < t < reach, in fixed-size chunks (one compilation).
+
+    The SDF tracer marches to the sample (t_max = d) and its first hit is compared with ``reach``; an
+    exact caster answers the occlusion query up to ``reach`` directly.
+    """
     n = len(o)
-    t_out = np.empty(n, np.float32)
+    out = np.empty(n, bool)
     for s in range(0, n, _CHUNK):
         e = min(n, s + _CHUNK)
         pad = _CHUNK - (e - s)
         oo = jnp.asarray(np.pad(o[s:e], ((0, pad), (0, 0))))
         uu = jnp.asarray(np.pad(u[s:e], ((0, pad), (0, 0)), constant_values=1.0 / math.sqrt(3.0)))
-        tm = jnp.asarray(np.pad(tmax[s:e], (0, pad)))
         if caster is None:
-            t, _ = trace_sdf_rays(grid, oo, uu, tm)
+            t, _ = trace_sdf_rays(grid, oo, uu, jnp.asarray(np.pad(d[s:e], (0, pad))))
+            b = np.asarray(t)[: e - s] < reach[s:e]
         else:
-            t = caster.closest_hit(oo, uu, tm).t
-        t_out[s:e] = np.asarray(t)[: e - s]
-    return t_out
+            tm = jnp.asarray(np.pad(np.maximum(reach[s:e], 0.0), (0, pad)))
+            b = caster.occluded(oo, uu, tm)
+        out[s:e] = np.asarray(b)[: e - s]
+    return out
 
 
 def binary_coverage(problem: PlacementProblem, vis: np.ndarray, active: np.ndarray | None = None) -> float:
@@ -513,7 +561,20 @@ def wang_fitness_binary(problem: PlacementProblem, pos, vis: np.ndarray | None =
     return float((term @ w).sum())
 
 
+@eqx.filter_jit
+def _sdf_many(grid: SDFGrid, pos: Float[Array, "n 3"]) -> Float[Array, " n"]:
+    return jax.vmap(lambda p: sdf_value(grid, p))(pos)
+
+
 def probe_clearance(problem: PlacementProblem, pos) -> np.ndarray:
-    """SDF value at each probe (negative: inside geometry)."""
-    pos = jnp.asarray(pos, jnp.float32).reshape(-1, 3)
-    return np.asarray(jax.vmap(lambda p: sdf_value(problem.grid, p))(pos))
+    """SDF value at each probe (negative: inside geometry).
+
+    Host helper: the positions are padded to a power-of-two count so the search's many calls with
+    varying probe counts share a few compilations.
+    """
+    pos = np.asarray(pos, np.float32).reshape(-1, 3)
+    n = len(pos)
+    m = max(8, 1 << max(n - 1, 0).bit_length())
+    pad = np.zeros((m, 3), np.float32)
+    pad[:n] = pos
+    return np.asarray(_sdf_many(problem.grid, jnp.asarray(pad)))[:n]

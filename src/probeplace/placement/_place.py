@@ -17,7 +17,8 @@ from ._grid import grid_dims, uniform_grid
 from ._refine import REFINERS, get_refiner
 from ._seeds import medial_axis_seeds, skeleton_seeds
 
-METHODS = ("skeleton", "medial", "skeleton+medial")
+BASELINE_METHODS = ("grid", "lod-grid", "vardis")  # --- baselines (issue 6): _place_baseline below ---
+METHODS = ("skeleton", "medial", "skeleton+medial", *BASELINE_METHODS)
 
 
 def place(
@@ -31,12 +32,17 @@ def place(
     target: float = 1.0,
     n_opt_samples: int = 1500,
     config: FitnessConfig | None = None,
+    caster: str | None = "auto",
+    options: dict | None = None,
 ) -> tuple[ProbeSet, dict]:
     """Place probes in ``scene``.
 
     Args:
         scene: the scene.
-        method: candidate generator: ``skeleton`` (SDF skeleton), ``medial`` (ball shrinking) or both.
+        method: candidate generator: ``skeleton`` (SDF skeleton), ``medial`` (ball shrinking) or both; or a
+            baseline (docs/baselines.md): ``grid`` (uniform grid; budget = max probes, ``"auto"`` = smallest
+            full-coverage grid), ``lod-grid`` (Yang 2023; budget = max probes over levels) or ``vardis``
+            (Vardis 2021 simplification of a dense grid; budget = target count, ``"auto"`` = error tolerance).
         budget: ``"auto"`` (fewest probes reaching ``target`` coverage) or a maximum probe count.
         refiner: registry name (:data:`REFINERS`) or ``None``; refines on the soft ``objective`` with
             ``n_opt_samples`` surface samples and is kept only if binary coverage does not drop.
@@ -45,6 +51,9 @@ def place(
         target: coverage target of the search.
         n_opt_samples: samples of the refiner's problem.
         config: fitness parameters.
+        caster: binary visibility of the search: ``"auto"`` (exact Embree occlusion rays when embreex
+            imports, else the SDF tracer), ``"embree"``, or ``None``/``"sdf"`` (SDF sphere tracer).
+        options: baseline options (:func:`_place_baseline`); must be empty for the other methods.
 
     Returns:
         (probes, metadata) — metadata holds method, config, seed, timings, coverage, curve.
@@ -58,6 +67,12 @@ def place(
         raise ConfigError(f"refiner must be one of {REFINERS} or None, got {refiner!r}")
     if budget != "auto" and not (isinstance(budget, int) and budget >= 1):
         raise ConfigError(f"budget must be 'auto' or a positive integer, got {budget!r}")
+    if method in BASELINE_METHODS:
+        return _place_baseline(
+            scene, method, budget, refiner, objective, seed, n_opt_samples, dict(options or {})
+        )
+    if options:
+        raise ConfigError(f"options apply to the methods {BASELINE_METHODS} only, got {sorted(options)}")
     t_all = time.perf_counter()
     timings: dict[str, float] = {}
     key = jax.random.key(seed)
@@ -96,6 +111,7 @@ def place(
         refine_problem=opt_problem,
         candidates=cand,
         max_probes=None if budget == "auto" else int(budget),
+        caster=(vis_caster := _search_caster(scene, caster)),
     )
     timings["search_s"] = time.perf_counter() - t0
     timings.update({f"search_{k}": v for k, v in res.timings.items()})
@@ -110,6 +126,7 @@ def place(
         "objective": objective,
         "seed": seed,
         "target": target,
+        "visibility": "sdf" if vis_caster is None else type(vis_caster).__name__,
         "config": {
             k: getattr(problem.config, k)
             for k in (
@@ -137,6 +154,22 @@ def place(
         "timings": timings,
     }
     return probes, meta
+
+
+def _search_caster(scene: Scene, caster: str | None):
+    """The exact caster of the binary visibility (PERF: Embree occlusion rays), or None (SDF tracer)."""
+    if caster in (None, "sdf"):
+        return None
+    if caster not in ("auto", "embree"):
+        raise ConfigError(f"caster must be 'auto', 'embree', 'sdf' or None, got {caster!r}")
+    from ..geometry import EmbreeUnavailableError, make_caster
+
+    try:
+        return make_caster(scene, "embree")
+    except EmbreeUnavailableError:
+        if caster == "embree":
+            raise
+        return None
 
 
 def coverage_of(scene: Scene, pos: np.ndarray, *, seed: int = 0) -> float:
@@ -201,3 +234,178 @@ def save_top_view(scene: Scene, pos: np.ndarray | jax.Array, path: str | Path, *
     fig.savefig(path)
     plt.close(fig)
     return path
+
+
+# --- baselines (issue 6): uniform grid, Yang 2023 LOD grid and Vardis 2021 as ``place`` methods ---
+BASELINE_OPTIONS = {
+    "grid": {"dims": None, "inside": "disable", "jitter": 0.0},
+    "lod-grid": {"base_divisions": None, "levels": 3},
+    "vardis": {
+        "dense": "grid",
+        "dense_probes": 512,
+        "inside": "disable",
+        "n_eval": 1024,
+        "eval_points": "surface",
+        "n_dirs": 64,
+        "spp": 4,
+        "max_depth": 4,
+        "error": "sh",
+        "weights": "chrominance",
+        "per_iteration": 1,
+        "lazy": False,
+        "tolerance": 0.05,
+        "progress": False,
+    },
+}
+
+
+def _grid_dims_for_budget(scene: Scene, budget: int, inside: str) -> tuple:
+    """Finest uniform grid (spacing shrinking by 10%) with at most ``budget`` active probes."""
+    from ._uniform import scene_box, uniform_probe_grid
+
+    lo, hi = scene_box(scene)
+    spacing = float(np.max(hi - lo))
+    best, seen = (1, 1, 1), set()
+    while True:
+        dims = grid_dims(lo, hi, spacing)
+        spacing *= 0.9
+        if dims in seen:
+            continue
+        seen.add(dims)
+        if int(np.prod(dims)) > 64 * budget + 64:
+            return best
+        n = uniform_probe_grid(scene, dims=dims, inside=inside).probes.n_active
+        if n > budget:
+            return best
+        best = dims
+
+
+def _place_baseline(scene, method, budget, refiner, objective, seed, n_opt_samples, options) -> tuple:
+    """The baseline methods of :func:`place`; ``options`` (defaults :data:`BASELINE_OPTIONS`):
+
+    * ``grid``: ``dims`` (else from the budget), ``inside`` (keep / disable / relocate), ``jitter``;
+    * ``lod-grid``: ``base_divisions`` (default: about 4 cells on the longest side, cubic cells), ``levels``;
+    * ``vardis``: ``dense`` (``grid`` / ``poisson``), ``dense_probes`` (about this many), ``inside``,
+      ``n_eval`` and ``eval_points`` (``surface`` / ``grid``), ``n_dirs`` / ``spp`` / ``max_depth`` of the
+      probe SH, ``error``, ``weights``, ``per_iteration``, ``lazy``, ``tolerance`` (budget ``"auto"``).
+
+    A ``refiner`` then moves the survivors on the coverage ``objective`` (Vardis 2021 §4's "global
+    optimiser as a last step"), kept only if binary coverage does not drop (``metadata["refined"]``).
+    """
+    from ._lod_grid import lod_probe_grid
+    from ._uniform import scene_box, uniform_probe_grid
+    from ._vardis import dense_probe_sh, evaluation_points, poisson_disk_probes, vardis_simplify
+
+    unknown = set(options) - set(BASELINE_OPTIONS[method])
+    if unknown:
+        known = sorted(BASELINE_OPTIONS[method])
+        raise ConfigError(f"unknown {method} options {sorted(unknown)}; known: {known}")
+    opts = {**BASELINE_OPTIONS[method], **options}
+    t_all = time.perf_counter()
+    timings: dict[str, float] = {}
+    k_g, k_v, k_e, k_r = jax.random.split(jax.random.key(seed), 4)
+    extra: dict = {}
+    t0 = time.perf_counter()
+    if method == "grid":
+        dims = opts["dims"]
+        if dims is None and budget == "auto":
+            n, _, dims = smallest_full_grid(make_problem(scene, key=k_g))
+            if n < 0:
+                raise ConfigError("no uniform grid up to 4096 probes reaches full coverage; give a budget")
+        elif dims is None:
+            dims = _grid_dims_for_budget(scene, int(budget), opts["inside"])
+        jitter = float(opts["jitter"])
+        key = k_g if jitter else None
+        r = uniform_probe_grid(scene, dims=dims, inside=opts["inside"], jitter=jitter, key=key)
+        pos = np.asarray(r.probes.pos_world)[np.asarray(r.probes.active)]
+        opts["dims"] = list(r.dims)
+        extra = {"n_inside": r.n_inside, "n_disabled": r.n_disabled, "n_relocated": r.n_relocated}
+    elif method == "lod-grid":
+        base = opts["base_divisions"]
+        if base is None:
+            lo, hi = scene_box(scene)
+            base = tuple(int(max(1, round(4 * e / np.max(hi - lo)))) for e in hi - lo)
+        opts["base_divisions"] = list(base)
+        levels = list(range(int(opts["levels"]) + 1)) if budget != "auto" else [int(opts["levels"])]
+        g = None
+        for lvl in levels[::-1]:
+            g = lod_probe_grid(scene, base_divisions=tuple(base), sub_division_level=lvl)
+            if budget == "auto" or g.probe_count <= int(budget):
+                break
+        if budget != "auto" and g.probe_count > int(budget):
+            raise ConfigError(f"even the base grid {tuple(base)} has {g.probe_count} > {budget} probes")
+        pos = g.positions
+        opts["levels"] = int(g.sub_division_level)
+        extra = {"lod_levels": np.bincount(g.levels, minlength=g.sub_division_level + 1).tolist()}
+    else:
+        lo, hi = scene_box(scene)
+        spacing = float(np.prod(hi - lo) / int(opts["dense_probes"])) ** (1 / 3)
+        if opts["dense"] == "grid":
+            r = uniform_probe_grid(scene, spacing=spacing, inside=opts["inside"])
+            dense = np.asarray(r.probes.pos_world)[np.asarray(r.probes.active)]
+        elif opts["dense"] == "poisson":
+            dense = poisson_disk_probes(scene, 0.9 * spacing, key=k_g)
+        else:
+            raise ConfigError(f"vardis dense must be 'grid' or 'poisson', got {opts['dense']!r}")
+        timings["dense_s"] = time.perf_counter() - t0
+        t1 = time.perf_counter()
+        values = dense_probe_sh(
+            scene, dense, n_dirs=opts["n_dirs"], spp=opts["spp"], max_depth=opts["max_depth"], key=k_v
+        )
+        timings["probe_values_s"] = time.perf_counter() - t1
+        t1 = time.perf_counter()
+        pts = evaluation_points(scene, int(opts["n_eval"]), key=k_e, kind=opts["eval_points"])
+        timings["eval_points_s"] = time.perf_counter() - t1
+        t1 = time.perf_counter()
+        res = vardis_simplify(
+            dense,
+            values,
+            pts,
+            target=None if budget == "auto" else max(4, min(int(budget), len(dense))),
+            tolerance=float(opts["tolerance"]) if budget == "auto" else None,
+            error=opts["error"],
+            weights=opts["weights"],
+            per_iteration=opts["per_iteration"],
+            lazy=bool(opts["lazy"]),
+            progress=bool(opts["progress"]),
+        )
+        timings["simplify_s"] = time.perf_counter() - t1
+        pos = dense[res.keep]
+        extra = {
+            "n_dense": len(dense),
+            "vardis_error": res.error,
+            "vardis_iterations": res.n_iterations,
+            "vardis_history": {"count": res.history_count.tolist(), "error": res.history_error.tolist()},
+        }
+    timings["build_s"] = time.perf_counter() - t0
+    pos = np.asarray(pos, np.float32)
+    t0 = time.perf_counter()
+    cov_problem = make_problem(scene, key=jax.random.key(seed))
+    coverage = binary_coverage(cov_problem, binary_visibility(cov_problem, pos))
+    timings["coverage_s"] = time.perf_counter() - t0
+    refined = False
+    if refiner is not None:
+        t0 = time.perf_counter()
+        opt_problem = make_problem(scene, key=k_r, n_samples=n_opt_samples, config=FitnessConfig(n_steps=16))
+        out = get_refiner(refiner, objective=objective).refine(opt_problem, jnp.asarray(pos), key=k_r)
+        new = np.asarray(out.pos, np.float32)
+        new_cov = binary_coverage(cov_problem, binary_visibility(cov_problem, new))
+        if np.all(np.isfinite(new)) and new_cov >= coverage:
+            pos, coverage, refined = new, new_cov, True
+        timings["refine_s"] = time.perf_counter() - t0
+    timings["total_s"] = time.perf_counter() - t_all
+    probes = ProbeSet(pos_world=jnp.asarray(pos), active=jnp.ones(len(pos), bool), method=method)
+    meta = {
+        "method": method,
+        "budget": budget,
+        "refiner": refiner,
+        "refined": refined,
+        "objective": objective,
+        "seed": seed,
+        "config": opts,
+        "n_probes": len(pos),
+        "coverage": coverage,
+        "timings": timings,
+        **extra,
+    }
+    return probes, meta

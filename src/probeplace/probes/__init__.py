@@ -24,3 +24,13 @@ from ._trace import make_tracer as make_tracer
 from ._trace import trace_light_field as trace_light_field
 from ._trace import trace_probe as trace_probe
 from ._trace import trace_ray as trace_ray
+
+# --- shading (EVAL helper, issue 4) ---
+# isort: split
+from ._shade import SHADINGS as SHADINGS
+from ._shade import default_index as default_index
+from ._shade import diffuse_irradiance as diffuse_irradiance
+from ._shade import glossy_radiance as glossy_radiance
+from ._shade import sh_coefficients as sh_coefficients
+from ._shade import sh_irradiance as sh_irradiance
+from ._shade import shade_irradiance as shade_irradiance

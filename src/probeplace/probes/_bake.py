@@ -33,10 +33,12 @@ from .._core import (
     LightFieldProbes,
     ProbeSet,
     Scene,
+    SceneError,
     add_border,
     jittered_texel_directions,
     texel_directions,
 )
+from .._core._errors import check_memory
 from ._filter import distance_moments, irradiance_map, mip_chains
 
 log = logging.getLogger(__name__)
@@ -59,8 +61,17 @@ def path_traced_radiance(
 
     ``spp`` paths per ray; with ``n_sub``² jittered rays per texel a texel averages ``spp·n_sub²`` paths.
     Each call uses a fresh random stream from its key, so batches are independent.
+
+    Raises:
+        SceneError: the scene has no light (every baked map would be black).
     """
     from ..render import trace_rays
+
+    if not scene.has_light:
+        raise SceneError(
+            f"scene {scene.name!r} has no light (no emissive material, sun or sky): path-traced probe "
+            "radiance would be all black; add a light"
+        )
 
     def fn(origins, directions, key):
         r = trace_rays(
@@ -148,6 +159,19 @@ def default_radiance_res(scene: Scene, *, quality: float = 1.0) -> int:
     return int(2 ** np.clip(np.round(np.log2(max(r, 1.0))), 4, 7))
 
 
+def _warn_probe_layout(pos: np.ndarray, lo: np.ndarray, hi: np.ndarray, what: str) -> None:
+    """Log (not refuse) duplicate probes and probes outside the scene box: both are legal but usually a
+    mistake — duplicates cost work for no gain, outside probes see the scene from beyond its bounds."""
+    n_dup = len(pos) - len(np.unique(pos, axis=0))
+    if n_dup:
+        log.warning("%s: %d of %d probe positions are duplicates", what, n_dup, len(pos))
+    out = ((pos < lo) | (pos > hi)).any(axis=1)
+    if out.any():
+        log.warning(
+            "%s: %d of %d probes lie outside the scene bounds %s–%s", what, out.sum(), len(pos), lo, hi
+        )
+
+
 def _bake_batch(
     pos: Float[Array, "b 3"],
     caster,
@@ -203,7 +227,10 @@ def bake_probes(
         The baked :class:`LightFieldProbes`; float32, maps with one-texel borders.
 
     Raises:
-        ConfigError: bad probe positions (NaN/inf) or configuration.
+        ConfigError: bad probe positions (NaN/inf), empty set or configuration.
+        ResourceError: one batch plus the output maps would not fit in memory (checked before allocating).
+
+    Duplicate probes and probes outside the scene bounds are baked as given, with a logged warning.
     """
     pos = np.asarray(probes.pos_world, np.float32)
     if not np.isfinite(pos).all():
@@ -216,6 +243,15 @@ def bake_probes(
 
     n = pos.shape[0]
     bsz = config.probes_per_batch
+    # Refuse up front (issue 9): one batch's rays (~200 bytes per path, see BakeConfig) plus the output
+    # maps (radiance, emission, normal 3 floats, distance 1, kept as NumPy and as JAX copies).
+    need = min(bsz, n) * res * res * config.n_sub**2 * 200 + n * (res + 2) ** 2 * 10 * 4 * 2
+    check_memory(
+        need,
+        f"bake of {n} probes at radiance_res={res}, n_sub={config.n_sub}, probes_per_batch={bsz}",
+        "lower radiance_res, n_sub or probes_per_batch",
+    )
+    _warn_probe_layout(pos[np.asarray(probes.active)], lo, hi, "bake")  # inactive rows are padding
     parts: list[tuple] = []
     keys = jax.random.split(key, (n + bsz - 1) // bsz)
     bar = tqdm(total=n, desc=f"bake {res}² probes", unit="probe", disable=not config.progress)

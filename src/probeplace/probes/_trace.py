@@ -43,10 +43,12 @@ import math
 import equinox as eqx
 import jax
 import jax.numpy as jnp
+import numpy as np
 from jaxtyping import Array, Bool, Float, Int
 
 from .._core import ConfigError, LightFieldProbes, strip_border, texel_directions
 from .._core._octahedral import _octahedron_point
+from ._bake import _warn_probe_layout
 from ._index import GridIndex, VoxelIndex, grid_index, voxel_index
 
 MISS, HIT, UNKNOWN = 0, 1, 2
@@ -79,6 +81,14 @@ class TraceConfig:
     bounds_margin: float = 0.05
 
     def __post_init__(self):
+        for name in ("coarse_factor", "hiz_skip_top", "max_probes", "max_steps"):
+            v = getattr(self, name)
+            if not (v is None and name == "max_steps") and (not isinstance(v, int) or isinstance(v, bool)):
+                raise ConfigError(f"TraceConfig.{name} must be an int, got {v!r}")
+        for name in ("thickness", "bounds_margin"):
+            v = getattr(self, name)
+            if not isinstance(v, int | float) or isinstance(v, bool) or not math.isfinite(v):
+                raise ConfigError(f"TraceConfig.{name} must be a finite number, got {v!r}")
         if self.hierarchy not in HIERARCHIES:
             raise ConfigError(f"TraceConfig.hierarchy must be one of {HIERARCHIES}, got {self.hierarchy!r}")
         if self.coarse_factor < 2 or self.coarse_factor & (self.coarse_factor - 1):
@@ -202,12 +212,20 @@ def make_tracer(
         A :class:`LightFieldTracer` (float32).
 
     Raises:
-        ConfigError: bad settings or no usable probe.
+        ConfigError: bad settings, non-finite probe positions or bounds, or no usable probe. Duplicate
+            probes and probes outside ``bounds`` are accepted with a logged warning.
     """
     res = lf.radiance_res
     if res < 2 or res & (res - 1):
         raise ConfigError(f"the tracer needs power-of-two probe maps, got resolution {res}")
     b = jnp.asarray(bounds, jnp.float32)
+    pos = np.asarray(lf.pos_world, np.float32)
+    if not np.isfinite(pos).all():
+        raise ConfigError(f"probe positions must be finite; {int((~np.isfinite(pos)).any(-1).sum())} are not")
+    if b.shape != (2, 3) or not bool(jnp.all(jnp.isfinite(b))) or not bool(jnp.all(b[1] >= b[0])):
+        raise ConfigError(f"bounds must be finite (min, max) corners of shape (2, 3), got {np.asarray(b)}")
+    # Inactive rows (e.g. padding to a fixed size so compiled code is reused) are not probes: skip them.
+    _warn_probe_layout(pos[np.asarray(lf.active)], np.asarray(b[0]), np.asarray(b[1]), "make_tracer")
     if index is None:
         try:
             index = grid_index(lf)
@@ -558,6 +576,8 @@ def trace_light_field(
     origins: Float[Array, "n_rays 3"],
     directions: Float[Array, "n_rays 3"],
     t_max: Float[Array, " n_rays"] | None = None,
+    *,
+    chunk: int | None = None,
 ) -> TraceResult:
     """Trace a batch of rays through the light-field probes (jitted; one compile per tracer layout).
 
@@ -566,6 +586,8 @@ def trace_light_field(
         origins: ray origins, world frame (offset secondary rays off their surface yourself).
         directions: unit directions.
         t_max: optional per-ray maximum distance (default: the scene diagonal).
+        chunk: trace this many rays at a time (``lax.map``), so working memory stays bounded as the
+            batch grows; ``None`` traces all rays at once (static: one compile per value).
 
     Returns:
         A :class:`TraceResult`; unresolved rays are flagged, never counted as hits or misses.
@@ -575,5 +597,9 @@ def trace_light_field(
     directions = jnp.asarray(directions, dt)
     if t_max is None:
         t_max = jnp.full(origins.shape[:1], jnp.inf, dt)
-    out = jax.vmap(trace_ray, in_axes=(None, 0, 0, 0))(tr, origins, directions, jnp.asarray(t_max, dt))
+    t_max = jnp.asarray(t_max, dt)
+    if chunk is None:
+        out = jax.vmap(trace_ray, in_axes=(None, 0, 0, 0))(tr, origins, directions, t_max)
+    else:
+        out = jax.lax.map(lambda x: trace_ray(tr, *x), (origins, directions, t_max), batch_size=chunk)
     return TraceResult(*out)

@@ -22,12 +22,15 @@ import numpy as np
 from jaxtyping import Array, Bool, Float, Int, Key, UInt32
 from tqdm.auto import tqdm
 
-from .._core import Camera, ConfigError, Scene
+from .._core import Camera, ConfigError, Scene, SceneError
+from .._core._errors import check_memory
 from ..geometry import BRUTE_FORCE_MAX_TRIANGLES, AbstractRayCaster, BruteForceCaster, BVHCaster, make_caster
 from ._camera import camera_rays
 from ._integrator import COMPONENTS, Paths, ShadeContext, add_shadowed, components, init_paths, shade
 from ._lights import light_table
 from ._sampling import DIM_DIR_U, path_uniforms, seed_from_key
+
+SCHEDULES = ("compact", "fused")
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -44,6 +47,10 @@ class RenderConfig:
             0 = pure Lambert dielectrics, used to compare with Mitsuba's ``diffuse``).
         paths_per_batch: paths traced at once (memory ~ 200 bytes per path).
         progress: show a tqdm progress bar.
+        schedule: bounce loop for jittable casters: ``"compact"`` (host loop that casts and shades only
+            the live paths of each bounce, padded to power-of-two sizes) or ``"fused"`` (one jitted
+            ``while_loop`` over every lane; see docs/render.md "Performance"). Host casters always get
+            the host loop.
     """
 
     width: int
@@ -54,12 +61,15 @@ class RenderConfig:
     specular: float = 1.0
     paths_per_batch: int = 1 << 18
     progress: bool = True
+    schedule: str = "compact"
 
     def __post_init__(self):
         for name in ("width", "height", "spp", "max_depth", "rr_depth", "paths_per_batch"):
             v = getattr(self, name)
             if not isinstance(v, int) or isinstance(v, bool) or v < 1:
                 raise ConfigError(f"RenderConfig.{name} must be a positive int, got {v!r}")
+        if self.schedule not in SCHEDULES:
+            raise ConfigError(f"RenderConfig.schedule must be one of {SCHEDULES}, got {self.schedule!r}")
         if not 0.0 <= float(self.specular) <= 1.0:
             raise ConfigError(f"RenderConfig.specular must be in [0, 1], got {self.specular!r}")
 
@@ -202,20 +212,88 @@ _add_shadowed_jit = eqx.filter_jit(add_shadowed)
 _reduce_jit = eqx.filter_jit(_reduce)
 
 
+@eqx.filter_jit
+def _scatter_hit(hit, live: Int[Array, " m"], n: int):
+    """A full-batch Hit from the hits of the live lanes (dead lanes: zeros; shading ignores them)."""
+    return jax.tree.map(lambda a: jnp.zeros((n, *a.shape[1:]), a.dtype).at[live].set(a), hit)
+
+
 def _batch_host(ctx, caster, source, seed, offset, pix0, smp0, spp, n_items, p, g):
-    """One batch with a host bounce loop (host casters such as Embree); shading stays jitted."""
+    """One batch with a host bounce loop (host casters such as Embree); shading stays jitted.
+
+    Only live paths are cast (closest hit), and only shadow rays with t_max > 0 (those that carry a
+    light sample): dead lanes cost the host caster nothing. Live index lists are padded to power-of-two
+    lengths so the scatter compiles a few times per render, not once per bounce."""
     paths, valid = _start_jit(source, seed, offset, pix0, smp0, spp, n_items, p, g)
+    n = p * g
     max_depth = int(ctx.max_depth)
     for k in range(1, max_depth + 1):
-        if not bool(jnp.any(paths.alive)):
+        alive = np.asarray(paths.alive)
+        live = np.flatnonzero(alive)
+        if len(live) == 0:
             break
-        hit = caster.closest_hit(paths.origin, paths.direction)
+        m = min(n, 1 << max(len(live) - 1, 0).bit_length())
+        live_p = np.concatenate([live, np.full(m - len(live), live[0])]).astype(np.int32)  # repeats: same hit
+        origin, direction = np.asarray(paths.origin), np.asarray(paths.direction)
+        hit = caster.closest_hit(jnp.asarray(origin[live_p]), jnp.asarray(direction[live_p]))
+        hit = _scatter_hit(hit, jnp.asarray(live_p), n)
         kk = jnp.asarray(k, jnp.int32)
         paths, shadow = _shade_jit(ctx, seed, kk, paths, hit)
         if k < max_depth:
-            occ = caster.occluded(shadow.origin, shadow.direction, shadow.t_max)
-            paths = _add_shadowed_jit(paths, occ, kk)
+            t_max = np.asarray(shadow.t_max)
+            cast = np.flatnonzero(t_max > 0)
+            occ = np.zeros(n, bool)
+            if len(cast):
+                so, sd = np.asarray(shadow.origin), np.asarray(shadow.direction)
+                occ[cast] = np.asarray(
+                    caster.occluded(jnp.asarray(so[cast]), jnp.asarray(sd[cast]), jnp.asarray(t_max[cast]))
+                )
+            paths = _add_shadowed_jit(paths, jnp.asarray(occ), kk)
     return _reduce_jit(paths, valid)
+
+
+_LANE_BLOCK = 8192  # lanes per block of a compacted bounce: the block's temporaries stay in cache
+
+
+@eqx.filter_jit
+def _batch_compact(ctx: ShadeContext, caster, source, seed, offset, pix0, smp0, spp, n_items, p: int, g: int):
+    """One batch as one jitted function with live-lane compaction (jittable casters).
+
+    Per bounce, the indices of the live paths are packed to the front (``jnp.nonzero`` with a static
+    size) and only ⌈live / B⌉ blocks of B = :data:`_LANE_BLOCK` lanes are cast and shaded (a
+    ``fori_loop`` with a traced trip count), each block gathered from and scattered back into the full
+    path state. A path that escaped or lost at Russian roulette costs nothing afterwards, and XLA:CPU's
+    many per-op loops of the vmapped shading run over one block's temporaries, which stay in cache (see
+    docs/render.md "Performance"). Same random numbers per (pixel, sample, bounce) as :func:`_batch_jit`,
+    so the same image up to float round-off; one compilation per (p, g) as well."""
+    paths, valid = _start(source, seed, offset, pix0, smp0, spp, n_items, p, g)
+    n = p * g
+    b = min(_LANE_BLOCK, n)
+    n_pad = -(-n // b) * b
+
+    def bounce(carry):
+        k, paths = carry
+        idx = jnp.nonzero(paths.alive, size=n_pad, fill_value=n)[0].astype(jnp.int32)
+        n_blocks = (jnp.sum(paths.alive, dtype=jnp.int32) + (b - 1)) // b
+
+        def block(i, paths):
+            ids = jax.lax.dynamic_slice(idx, (i * b,), (b,))
+            sub = jax.tree.map(lambda a: a.at[ids].get(mode="fill", fill_value=0), paths)
+            hit = caster.closest_hit(sub.origin, sub.direction)
+            sub, shadow = shade(ctx, seed, k, sub, hit)
+            # at k = max_depth shade draws no light sample (NEE is zero): shadow rays have t_max = 0
+            occ = caster.occluded(shadow.origin, shadow.direction, shadow.t_max)
+            sub = add_shadowed(sub, occ, k)
+            return jax.tree.map(lambda a, v: a.at[ids].set(v, mode="drop"), paths, sub)
+
+        return k + 1, jax.lax.fori_loop(0, n_blocks, block, paths)
+
+    def cond(carry):
+        k, paths = carry
+        return (k <= ctx.max_depth) & jnp.any(paths.alive)
+
+    _, paths = jax.lax.while_loop(cond, bounce, (jnp.asarray(1, jnp.int32), paths))
+    return _reduce(paths, valid)
 
 
 def shade_context(scene: Scene, cfg: RenderConfig) -> ShadeContext:
@@ -256,7 +334,10 @@ def _accumulate(scene, source, n_items: int, config: RenderConfig, seed, caster,
         raise TypeError(f"caster must be an AbstractRayCaster, got {type(caster).__name__}")
     ctx = shade_context(scene, config)
     p, g = _batch_layout(config, n_items)
-    run = _batch_jit if is_jittable(caster) else _batch_host
+    if not is_jittable(caster):
+        run = _batch_host
+    else:
+        run = _batch_compact if config.schedule == "compact" else _batch_jit
     n = np.zeros(n_items)
     mean = np.zeros((n_items, len(COMPONENTS), 3))
     m2 = np.zeros_like(mean)
@@ -286,6 +367,23 @@ def _accumulate(scene, source, n_items: int, config: RenderConfig, seed, caster,
     return mean, var
 
 
+def _check_renderable(scene: Scene, n_items: int, config: RenderConfig, what: str) -> None:
+    """Refuse, up front, a scene without light (every image would be black) and a job whose float64
+    running statistics (mean + variance per component) and path batch would not fit in memory."""
+    if not scene.has_light:
+        raise SceneError(
+            f"{what}: scene {scene.name!r} has no light (no emissive material, sun or sky); "
+            "every image would be black"
+        )
+    stats = n_items * len(COMPONENTS) * 3 * 8 * 2
+    batch = min(int(config.paths_per_batch), n_items * int(config.spp)) * 200  # ~200 B of path state each
+    check_memory(
+        stats + batch,
+        f"{what} of {n_items} items × {config.spp} spp",
+        "use a smaller image or fewer rays per call",
+    )
+
+
 def render(
     scene: Scene,
     view: str | Camera,
@@ -313,8 +411,10 @@ def render(
         A :class:`RenderResult` (float32; ``image("full")`` is the beauty image).
 
     Raises:
-        ConfigError: bad settings; KeyError: unknown view name; TypeError: bad key or caster.
+        ConfigError: bad settings; KeyError: unknown view name; TypeError: bad key or caster;
+        SceneError: the scene has no light; ResourceError: the image statistics would not fit in memory.
     """
+    _check_renderable(scene, config.width * config.height, config, "render")
     camera = scene.view(view) if isinstance(view, str) else view
     source = _CameraSource(
         camera, jnp.asarray(config.width, jnp.int32), jnp.asarray(config.height, jnp.int32)
@@ -398,6 +498,7 @@ def trace_rays(
         paths_per_batch=paths_per_batch,
         progress=progress,
     )
+    _check_renderable(scene, int(o.shape[0]), cfg, "trace_rays")
 
     def batch_rays(pix0: int, p: int) -> _RayBatch:
         sl = slice(pix0, min(pix0 + p, n))

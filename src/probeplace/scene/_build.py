@@ -18,6 +18,9 @@ log = logging.getLogger(__name__)
 # A triangle whose area is below this fraction of (bbox diagonal)² is degenerate: float32 cannot
 # give it a stable normal, and it contributes nothing to rendering.
 _DEGENERATE_REL_AREA = 1e-14
+#: Largest |coordinate| and smallest extent a scene may have (float32-safe squared distances; issue 9).
+MAX_COORDINATE = 1e18
+MIN_EXTENT = 1e-15
 # Corner normals are averaged only over faces within this angle (hard edges stay hard).
 CREASE_ANGLE_DEG = 30.0
 
@@ -121,10 +124,12 @@ def build_scene(
     unit_m: float = 1.0,
     source: str = "<memory>",
 ) -> Scene:
-    """Check raw triangle data, drop degenerate triangles (logged with a count) and build a Scene.
+    """Check raw triangle data, drop degenerate and duplicate triangles (logged with a count) and build a
+    Scene.
 
     Raises:
-        SceneError: empty mesh, NaN/inf vertices, out-of-range indices or material ids.
+        SceneError: empty mesh, NaN/inf vertices, coordinates outside float32's safe range, out-of-range
+            indices or material ids.
     """
     vertices = np.asarray(vertices)
     faces = np.asarray(faces)
@@ -141,6 +146,20 @@ def build_scene(
         )
     if faces.min() < 0 or faces.max() >= len(vertices):
         raise SceneError(f"{source}: face indices out of range [0, {len(vertices)})")
+    # float32 range (issue 9): squared distances must stay finite and normal in float32 (max ≈ 3.4e38,
+    # smallest normal ≈ 1.2e-38), so coordinates stay below 1e18 and the extent above 1e-15.
+    v_abs = float(np.abs(vertices).max())
+    if v_abs > MAX_COORDINATE:
+        raise SceneError(
+            f"{source}: vertex coordinates reach {v_abs:.3g}, beyond ±{MAX_COORDINATE:g}: squared "
+            "distances would overflow float32; rescale the scene"
+        )
+    extent = float(np.max(vertices.max(0) - vertices.min(0)))
+    if extent < MIN_EXTENT:
+        raise SceneError(
+            f"{source}: the scene's extent {extent:.3g} is below {MIN_EXTENT:g}: squared distances "
+            "would underflow float32; rescale the scene"
+        )
     tri_material = np.asarray(tri_material, np.int64).reshape(-1)
     if tri_material.shape[0] != faces.shape[0]:
         raise SceneError(
@@ -165,6 +184,18 @@ def build_scene(
             "%s: dropped %d degenerate (zero-area) triangles of %d", source, int(degenerate.sum()), len(faces)
         )
         keep = ~degenerate
+        faces, tri_material, tri_part = faces[keep], tri_material[keep], tri_part[keep]
+
+    # Duplicate triangles (same corners, same winding; issue 9) z-fight and double-count area: keep the
+    # first. Opposite windings are kept: two one-sided faces back to back are a legitimate thin sheet.
+    _, v_id = np.unique(v64, axis=0, return_inverse=True)
+    corners = v_id.reshape(-1)[faces]
+    lead = np.argmin(corners, axis=1)
+    canon = np.take_along_axis(corners, (lead[:, None] + np.arange(3)[None]) % 3, axis=1)
+    _, first = np.unique(canon, axis=0, return_index=True)
+    if len(first) < len(faces):
+        log.warning("%s: dropped %d duplicate triangles of %d", source, len(faces) - len(first), len(faces))
+        keep = np.sort(first)
         faces, tri_material, tri_part = faces[keep], tri_material[keep], tri_part[keep]
 
     # Drop vertices no face uses, so bounds describe the geometry.

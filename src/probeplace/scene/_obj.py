@@ -93,11 +93,18 @@ def load_obj(path: Path) -> RawScene:
     """Read an ``.obj`` file and its MTL library (see the module docstring for the mapping).
 
     Raises:
-        SceneError: binary garbage, a malformed MTL value, or no triangles.
+        SceneError: binary garbage, a face with fewer than 3 corners, a malformed MTL value, or no
+            triangles.
     """
     text = _read_text(path)
     mtl: dict[str, dict] = {}
-    for line in text.splitlines():
+    for line_no, line in enumerate(text.splitlines(), 1):
+        # trimesh silently drops a face with < 3 corners: the mark of a file cut off mid-line (issue 9).
+        words = line.split("#", 1)[0].split()
+        if words and words[0] == "f" and len(words) < 4:
+            raise SceneError(
+                f"{path}:{line_no}: face with {len(words) - 1} vertices (need ≥ 3): truncated or corrupt OBJ"
+            )
         tok = line.split("#", 1)[0].split(maxsplit=1)
         if len(tok) == 2 and tok[0] == "mtllib":
             lib = path.parent / tok[1].strip()

@@ -1,0 +1,31 @@
+"""Redraw every chart of an experiment from its saved files and write report.md.
+
+    python experiments/report.py results/cornell_comparison      # -> results/cornell_comparison/report/
+
+Only finished runs (folders with a DONE marker) are read; see probeplace.experiment._report.
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+
+from probeplace._core import ProbeplaceError
+from probeplace.experiment import make_report
+
+
+def main(argv: list[str] | None = None) -> int:
+    p = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    p.add_argument("results", help="an experiment folder: results/<experiment>")
+    args = p.parse_args(argv)
+    try:
+        path = make_report(args.results)
+    except ProbeplaceError as e:
+        print(f"report: error: {e}", file=sys.stderr)
+        return 2
+    print(path)
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,77 @@
+"""Write an evaluation: ``metrics.json`` (atomic), EXR + PNG images and false-colour error maps."""
+
+from __future__ import annotations
+
+import os
+from pathlib import Path
+
+import numpy as np
+from PIL import Image
+
+from .._core import write_json_atomic
+from ..render import save_exr, save_png
+from ._evaluate import EVAL_COMPONENTS, EvalResult
+
+# Viridis at 9 stops (matplotlib's table, sampled), interpolated linearly: perceptually ordered.
+_VIRIDIS = np.array(
+    [
+        [0.267, 0.005, 0.329],
+        [0.279, 0.175, 0.483],
+        [0.230, 0.322, 0.546],
+        [0.173, 0.449, 0.558],
+        [0.128, 0.567, 0.551],
+        [0.158, 0.684, 0.502],
+        [0.369, 0.789, 0.383],
+        [0.678, 0.864, 0.190],
+        [0.993, 0.906, 0.144],
+    ]
+)
+
+
+def false_colour(err: np.ndarray, vmax: float | None = None, *, bar: bool = True) -> np.ndarray:
+    """Luminance-free error magnitude (mean over RGB) → 8-bit viridis RGB, 0 … ``vmax`` (default: the
+    99th percentile); with ``bar`` a vertical colour bar (bottom 0, top ``vmax``) is appended."""
+    e = np.asarray(err, np.float64)
+    e = e.mean(axis=-1) if e.ndim == 3 else e
+    if vmax is None:
+        vmax = float(np.percentile(e, 99)) if e.size else 1.0
+    vmax = vmax if vmax > 0 else 1.0
+    t = np.clip(np.nan_to_num(e / vmax), 0.0, 1.0)
+
+    def cmap(x):
+        f = x * (len(_VIRIDIS) - 1)
+        i = np.clip(np.floor(f).astype(int), 0, len(_VIRIDIS) - 2)
+        a = (f - i)[..., None]
+        return _VIRIDIS[i] * (1 - a) + _VIRIDIS[i + 1] * a
+
+    rgb = cmap(t)
+    if bar:
+        h = e.shape[0]
+        ramp = np.linspace(1.0, 0.0, h)[:, None] * np.ones((1, max(4, e.shape[1] // 16)))
+        gap = np.ones((h, 2, 3))
+        rgb = np.concatenate([rgb, gap, cmap(ramp)], axis=1)
+    return np.round(rgb * 255).astype(np.uint8)
+
+
+def write_evaluation(result: EvalResult, out_dir: str | os.PathLike) -> dict[str, Path]:
+    """Write ``metrics.json``, ``images.exr`` (every image as a layer), one tone-mapped PNG per image and
+    ``error_<component>_false.png`` (viridis, colour bar on the right, scale in metrics.json under
+    ``error_png_vmax``). Returns name → path."""
+    out = Path(out_dir)
+    out.mkdir(parents=True, exist_ok=True)
+    paths: dict[str, Path] = {}
+    vmax = {}
+    for c in EVAL_COMPONENTS:
+        err = result.images[f"error_{c}"]
+        v = float(np.percentile(np.asarray(err).mean(axis=-1), 99)) if np.asarray(err).size else 0.0
+        vmax[c] = v
+        p = out / f"error_{c}_false.png"
+        Image.fromarray(false_colour(err, v if v > 0 else None)).save(p)
+        paths[f"error_{c}_false"] = p
+    for name, img in result.images.items():
+        paths[name] = save_png(out / f"{name}.png", img)
+    paths["exr"] = save_exr(out / "images.exr", result.images, main="probe_full")
+    metrics = dict(result.metrics)
+    metrics["error_png_vmax"] = vmax
+    paths["metrics"] = write_json_atomic(out / "metrics.json", metrics)
+    return paths

@@ -1,0 +1,409 @@
+"""Charts and a Markdown report redrawn from the saved files of an experiment (``experiments/report.py``).
+
+Reads only finished run folders (``DONE``): ``metrics.json``, ``config.yaml``, ``probes.json`` and
+``eval/images.exr``. Writes ``<experiment dir>/report/`` atomically: ``report.md``, ``mse_vs_count.png``,
+``mse_vs_time.png`` (placement + bake, and shading per frame, Pareto front marked), ``memory_vs_mse.png``,
+``error_images.png`` (one colour scale), ``top_views/<run>.png`` and, with several seeds or scene offsets,
+the stability tables.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+import os
+import shutil
+from collections import defaultdict
+from pathlib import Path
+
+import numpy as np
+
+from ._results import iter_runs
+
+PRIMARY = "mse_glossy_indirect"
+MSE_KEYS = ("mse_glossy_indirect", "mse_diffuse_indirect", "mse_full")
+
+
+def load_runs(exp_dir: str | os.PathLike) -> list[dict]:
+    """One record per finished run: its metrics plus ``dir`` (Path)."""
+    runs = []
+    for d in iter_runs(exp_dir):
+        m = json.loads((d / "metrics.json").read_text())
+        m["dir"] = d
+        runs.append(m)
+    return runs
+
+
+def _mse(r: dict, key: str = PRIMARY) -> float | None:
+    v = (r.get("eval") or {}).get(key)
+    return float(v) if isinstance(v, int | float) and math.isfinite(v) else None
+
+
+def _shade_s(r: dict) -> float | None:
+    v = (r.get("eval") or {}).get("shading_s_per_frame")
+    return float(v) if isinstance(v, int | float) else None
+
+
+def _memory(r: dict) -> float | None:
+    """Bytes of the run's real probes as stored (``metrics.memory``, written by run())."""
+    m = r.get("memory") or {}
+    return float(m["bytes_total"]) if "bytes_total" in m else None
+
+
+def pareto_front(points: list) -> list[int]:
+    """Indices of the points not dominated in (x, y), both minimised; sorted by x."""
+    order = sorted(range(len(points)), key=lambda i: (points[i][0], points[i][1]))
+    front, best = [], math.inf
+    for i in order:
+        if points[i][1] < best:
+            front.append(i)
+            best = points[i][1]
+    return front
+
+
+def _labels(runs: list[dict]) -> list[str]:
+    return sorted({r["label"] for r in runs}, key=lambda s: (s != "grid", s != "lod-grid", s))
+
+
+def _colours(labels: list[str]) -> dict:
+    import matplotlib
+
+    cmap = matplotlib.colormaps["tab20"]
+    return {lab: cmap(i % 20) for i, lab in enumerate(labels)}
+
+
+def _plt():
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    return plt
+
+
+def _chart_mse_vs_count(runs, labels, col, out: Path) -> Path | None:
+    have = [k for k in MSE_KEYS if any(_mse(r, k) is not None for r in runs)]
+    if not have:
+        return None
+    plt = _plt()
+    fig, axes = plt.subplots(1, len(have), figsize=(5 * len(have), 4), constrained_layout=True, squeeze=False)
+    for ax, key in zip(axes[0], have, strict=True):
+        for lab in labels:
+            pts = sorted(
+                (r["n_probes"], _mse(r, key)) for r in runs if r["label"] == lab and _mse(r, key) is not None
+            )
+            if pts:
+                x, y = zip(*pts, strict=True)
+                ax.plot(x, y, "o-", color=col[lab], label=lab, ms=5)
+        floor = [v for r in runs if (v := (r.get("eval") or {}).get(key.replace("mse_", "noise_floor_")))]
+        if floor:
+            ax.axhline(float(np.median(floor)), ls="--", c="k", lw=0.8, label="reference noise floor")
+        ax.set_xlabel("probes")
+        ax.set_ylabel(key)
+        ax.set_yscale("log")
+        ax.set_title(key.replace("mse_", "MSE ").replace("_", " "))
+    axes[0][0].legend(fontsize=7)
+    p = out / "mse_vs_count.png"
+    fig.savefig(p, dpi=110)
+    plt.close(fig)
+    return p
+
+
+def _chart_mse_vs_time(runs, labels, col, out: Path) -> Path | None:
+    rs = [r for r in runs if _mse(r) is not None]
+    if not rs:
+        return None
+    plt = _plt()
+    panels = [("placement + bake (s)", lambda r: r["timings"].get("place_bake_s"))]
+    if any(_shade_s(r) is not None for r in rs):
+        panels.append(
+            ("shading per frame (ms)", lambda r: None if _shade_s(r) is None else 1e3 * _shade_s(r))
+        )
+    fig, axes = plt.subplots(
+        1, len(panels), figsize=(5.5 * len(panels), 4.2), constrained_layout=True, squeeze=False
+    )
+    for ax, (name, fx) in zip(axes[0], panels, strict=True):
+        pts = [(fx(r), _mse(r), r["label"]) for r in rs if fx(r) is not None]
+        for lab in labels:
+            p = [(x, y) for x, y, lb in pts if lb == lab]
+            if p:
+                ax.scatter(*zip(*p, strict=True), color=col[lab], label=lab, s=30, zorder=3)
+        front = pareto_front([(x, y) for x, y, _ in pts])
+        fx_, fy_ = [pts[i][0] for i in front], [pts[i][1] for i in front]
+        ax.step(fx_, fy_, where="post", c="k", lw=1.0, zorder=2, label="Pareto front")
+        ax.scatter(fx_, fy_, facecolors="none", edgecolors="k", s=110, zorder=4)
+        ax.set_xlabel(name)
+        ax.set_ylabel(PRIMARY)
+        ax.set_yscale("log")
+    axes[0][0].legend(fontsize=7)
+    p = out / "mse_vs_time.png"
+    fig.savefig(p, dpi=110)
+    plt.close(fig)
+    return p
+
+
+def _chart_memory(runs, labels, col, out: Path) -> Path | None:
+    rs = [r for r in runs if _mse(r) is not None and _memory(r) is not None]
+    if not rs:
+        return None
+    plt = _plt()
+    fig, ax = plt.subplots(figsize=(5.5, 4.2), constrained_layout=True)
+    for lab in labels:
+        p = [(_memory(r) / 1024, _mse(r)) for r in rs if r["label"] == lab]
+        if p:
+            ax.scatter(*zip(*p, strict=True), color=col[lab], label=lab, s=30)
+    ax.set_xlabel("probe memory (KiB)")
+    ax.set_ylabel(PRIMARY)
+    ax.set_yscale("log")
+    ax.legend(fontsize=7)
+    p = out / "memory_vs_mse.png"
+    fig.savefig(p, dpi=110)
+    plt.close(fig)
+    return p
+
+
+def _chart_errors(runs, out: Path, component: str = "glossy_indirect") -> Path | None:
+    from ..render._image_io import load_exr
+
+    imgs = []
+    for r in runs:
+        exr = r["dir"] / "eval" / "images.exr"
+        if exr.is_file():
+            layers = load_exr(exr)
+            if f"error_{component}" in layers:
+                imgs.append(
+                    (r["run"], layers[f"error_{component}"].mean(axis=-1), layers.get(f"ref_{component}"))
+                )
+    if not imgs:
+        return None
+    plt = _plt()
+    vmax = float(np.percentile(np.concatenate([e.ravel() for _, e, _ in imgs]), 99)) or 1.0
+    n = len(imgs)
+    cols = min(n, 4)
+    rows = math.ceil(n / cols)
+    fig, axes = plt.subplots(
+        rows, cols, figsize=(3.2 * cols, 3.2 * rows + 0.3), constrained_layout=True, squeeze=False
+    )
+    im = None
+    for ax, (name, err, _) in zip(axes.ravel(), imgs, strict=False):
+        im = ax.imshow(err, cmap="viridis", vmin=0, vmax=vmax)
+        ax.set_title(name.split("__")[1] if "__" in name else name, fontsize=8)
+    for ax in axes.ravel():
+        ax.set_axis_off()
+    fig.colorbar(
+        im, ax=axes.ravel().tolist(), shrink=0.7, label=f"|probe − reference| {component} (mean RGB)"
+    )
+    p = out / "error_images.png"
+    fig.savefig(p, dpi=100)
+    plt.close(fig)
+    return p
+
+
+def _top_views(runs, out: Path) -> list[Path]:
+    """Redraw each layout over its scene (``placement.save_top_view``) from probes.json + config.yaml."""
+    from omegaconf import OmegaConf
+
+    from .._core import load_probe_set
+    from ..placement import save_top_view
+    from ._run import load_experiment_scene
+    from ._schema import to_config
+
+    paths, scenes = [], {}
+    for r in runs:
+        cfg = to_config(OmegaConf.load(r["dir"] / "config.yaml"))
+        key = (cfg.scene.name, tuple(cfg.scene.translate_frac), cfg.scene.rotate_deg)
+        if key not in scenes:
+            scenes[key] = load_experiment_scene(cfg.scene)
+        probes, _ = load_probe_set(r["dir"] / "probes.json")
+        pos = np.asarray(probes.pos_world)[np.asarray(probes.active)]
+        paths.append(
+            save_top_view(
+                scenes[key],
+                pos,
+                out / "top_views" / f"{r['run']}.png",
+                title=f"{r['label']}: {len(pos)} probes",
+            )
+        )
+    return paths
+
+
+def _fmt(v, spec=".3g") -> str:
+    if v is None:
+        return "—"
+    if isinstance(v, float) and not math.isfinite(v):
+        return "—"
+    return format(v, spec) if isinstance(v, int | float) and not isinstance(v, bool) else str(v)
+
+
+def _group(runs: list[dict]) -> dict:
+    """(scene, label) → runs."""
+    g = defaultdict(list)
+    for r in runs:
+        g[(r["scene"], r["label"])].append(r)
+    return g
+
+
+def _interp_log(x0: float, pts: list) -> float | None:
+    """y at x0 by linear interpolation in log-log over sorted (x, y); None outside the measured range."""
+    pts = sorted(p for p in pts if p[0] > 0 and p[1] > 0)
+    if not pts:
+        return None
+    xs, ys = np.log([p[0] for p in pts]), np.log([p[1] for p in pts])
+    lx = math.log(x0)
+    if lx < xs[0] - 1e-12 or lx > xs[-1] + 1e-12:
+        return None
+    return float(np.exp(np.interp(lx, xs, ys)))
+
+
+def _tables(runs: list[dict], labels: list[str]) -> list[str]:
+    md = []
+    md += ["## All runs", ""]
+    md += [
+        "| run | probes | coverage | place s | bake s | MSE glossy ind. | MSE diffuse ind. | MSE full "
+        "| noise floor glossy | shading ms/frame | memory KiB | unresolved | failures |",
+        "|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---|",
+    ]
+    for r in sorted(runs, key=lambda r: (r["scene"], labels.index(r["label"]), r["n_probes"], r["seed"])):
+        e = r.get("eval") or {}
+        t = r["timings"]
+        mem = _memory(r)
+        md.append(
+            f"| {r['run']} | {r['n_probes']} | {_fmt(r.get('coverage'), '.4f')} "
+            f"| {_fmt(t.get('place_s'), '.1f')} "
+            f"| {_fmt(t.get('bake_s'), '.1f')} | {_fmt(_mse(r))} | {_fmt(_mse(r, 'mse_diffuse_indirect'))} "
+            f"| {_fmt(_mse(r, 'mse_full'))} | {_fmt(e.get('noise_floor_glossy_indirect'))} "
+            f"| {_fmt(None if _shade_s(r) is None else 1e3 * _shade_s(r), '.2f')} "
+            f"| {_fmt(None if mem is None else mem / 1024, '.1f')} "
+            f"| {_fmt(e.get('unresolved_share'), '.4f')} "
+            f"| {', '.join(r.get('failures', [])) or 'none'} |"
+        )
+    scenes = sorted({r["scene"] for r in runs})
+    for scene in scenes:
+        rs = [r for r in runs if r["scene"] == scene and _mse(r) is not None]
+        grid = [r for r in rs if r["label"] == "grid"]
+        if not rs or not grid:
+            md += [
+                "",
+                f"_{scene}: equal-count / time / quality tables need evaluated runs including `grid`._",
+            ]
+            continue
+        g_count = float(np.median([r["n_probes"] for r in grid]))
+        g_time = float(np.median([r["timings"]["place_bake_s"] for r in grid]))
+        g_mse = _interp_log(g_count, [(r["n_probes"], _mse(r)) for r in grid]) or float(
+            np.median([_mse(r) for r in grid])
+        )
+        by = _group(rs)
+        md += ["", f"## {scene}: equal probe count ({g_count:g} probes, the grid's count)", ""]
+        md += ["| method | MSE glossy ind. at that count | ÷ grid | how |", "|---|---:|---:|---|"]
+        for lab in labels:
+            pts = [(r["n_probes"], _mse(r)) for r in by.get((scene, lab), [])]
+            if not pts:
+                continue
+            v, how = _interp_log(g_count, pts), "interpolated (log-log)"
+            if v is None:
+                near = min(pts, key=lambda p: abs(math.log(p[0] / g_count)))
+                v, how = near[1], f"nearest count measured: {near[0]}"
+            md.append(f"| {lab} | {_fmt(v)} | {_fmt(v / g_mse, '.2f')} | {how} |")
+        md += ["", f"## {scene}: equal time (placement + bake ≤ {g_time:.1f} s, the grid's time)", ""]
+        md += ["| method | best MSE glossy ind. within the time | probes | ÷ grid |", "|---|---:|---:|---:|"]
+        for lab in labels:
+            ok = [r for r in by.get((scene, lab), []) if r["timings"]["place_bake_s"] <= g_time]
+            if ok:
+                b = min(ok, key=_mse)
+                md.append(f"| {lab} | {_fmt(_mse(b))} | {b['n_probes']} | {_fmt(_mse(b) / g_mse, '.2f')} |")
+            else:
+                fastest = min(
+                    r["timings"]["place_bake_s"]
+                    for r in by.get((scene, lab), []) or [{"timings": {"place_bake_s": math.nan}}]
+                )
+                md.append(f"| {lab} | — (fastest run {fastest:.1f} s) | — | — |")
+        md += ["", f"## {scene}: equal quality (MSE glossy ind. ≤ {g_mse:.3g}, the grid's)", ""]
+        md += ["| method | fewest probes reaching it | its placement + bake s |", "|---|---:|---:|"]
+        for lab in labels:
+            ok = [r for r in by.get((scene, lab), []) if _mse(r) <= g_mse * (1 + 1e-9)]
+            if ok:
+                b = min(ok, key=lambda r: r["n_probes"])
+                md.append(f"| {lab} | {b['n_probes']} | {b['timings']['place_bake_s']:.1f} |")
+            else:
+                md.append(f"| {lab} | not reached in these runs | — |")
+    return md
+
+
+def _stability(runs: list[dict], labels: list[str]) -> list[str]:
+    g = _group(runs)
+    if all(len(v) < 2 for v in g.values()):
+        return []
+    md = ["## Stability (spread over seeds and scene offsets)", ""]
+    md += [
+        "| scene | method | runs | failure rate | probes mean ± sd | coverage min "
+        "| MSE glossy mean ± sd | failures |",
+        "|---|---|---:|---:|---:|---:|---:|---|",
+    ]
+    for (scene, lab), rs in sorted(g.items(), key=lambda kv: (kv[0][0], labels.index(kv[0][1]))):
+        n = np.array([r["n_probes"] for r in rs], float)
+        cov = [r["coverage"] for r in rs if r.get("coverage") is not None]
+        fails = [f for r in rs for f in r.get("failures", [])]
+        rate = sum(bool(r.get("failures")) for r in rs) / len(rs)
+        mses = np.array([v for r in rs if (v := _mse(r)) is not None])
+        mse_s = f"{mses.mean():.3g} ± {mses.std():.2g}" if len(mses) else "—"
+        counts = ", ".join(f"{k} ×{fails.count(k)}" for k in sorted(set(fails))) or "none"
+        md.append(
+            f"| {scene} | {lab} | {len(rs)} | {rate:.0%} | {n.mean():.1f} ± {n.std():.1f} "
+            f"| {_fmt(min(cov) if cov else None, '.4f')} | {mse_s} | {counts} |"
+        )
+    return md
+
+
+def make_report(exp_dir: str | os.PathLike) -> Path:
+    """Write ``<exp_dir>/report/`` (report.md + PNG charts) from the finished runs; returns report.md.
+
+    Raises:
+        ProbeplaceError: no finished run under ``exp_dir``.
+    """
+    from .._core import ProbeplaceError
+
+    exp = Path(exp_dir)
+    runs = load_runs(exp)
+    if not runs:
+        raise ProbeplaceError(f"{exp}: no finished run (folders with a DONE marker) to report on")
+    final = exp / "report"
+    partial = exp / f".report.partial-{os.getpid()}"
+    shutil.rmtree(partial, ignore_errors=True)
+    partial.mkdir(parents=True)
+    try:
+        labels = _labels(runs)
+        col = _colours(labels)
+        charts = [
+            _chart_mse_vs_count(runs, labels, col, partial),
+            _chart_mse_vs_time(runs, labels, col, partial),
+            _chart_memory(runs, labels, col, partial),
+            _chart_errors(runs, partial),
+        ]
+        tops = _top_views(runs, partial)
+        name = exp.name
+        md = [
+            f"# {name}",
+            "",
+            f"{len(runs)} finished runs in `{exp}`; every figure below is redrawn from them.",
+            "",
+        ]
+        titles = [
+            "MSE vs probe count",
+            "MSE vs time (Pareto front marked)",
+            "Memory vs MSE",
+            "Error images (one scale)",
+        ]
+        for t, c in zip(titles, charts, strict=True):
+            md += [f"## {t}", "", f"![{t}]({c.name})" if c else "_no evaluated runs: nothing to draw_", ""]
+        md += ["## Probe layouts (top view)", ""]
+        md += [" ".join(f"![{p.stem}](top_views/{p.name})" for p in tops), ""]
+        md += _tables(runs, labels)
+        md += ["", *_stability(runs, labels)]
+        (partial / "report.md").write_text("\n".join(md) + "\n")
+    except BaseException:
+        shutil.rmtree(partial, ignore_errors=True)
+        raise
+    if final.exists():
+        shutil.rmtree(final)
+    os.replace(partial, final)
+    return final / "report.md"

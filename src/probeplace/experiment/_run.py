@@ -1,0 +1,400 @@
+"""``run(cfg) -> RunResult``: one experiment run, end to end, into an atomically written results folder.
+
+Stages: load the scene (optionally offset/rotated) → place (timed) → bake (timed, progress bar) →
+evaluate (when ``probeplace.evaluate`` provides it) → export (optional) → write ``config.yaml``,
+``metrics.json``, ``env.json``, the probe set, the baked probes, images and ``DONE``.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import logging
+import time
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from .._core import ConfigError, ProbeplaceError
+from . import _results
+from ._schema import ExperimentConfig, config_to_dict, to_config
+
+log = logging.getLogger(__name__)
+
+
+class EvaluationUnavailable(ProbeplaceError):
+    """``eval.enabled`` is set but ``probeplace.evaluate`` does not provide ``evaluate`` yet."""
+
+
+@dataclass(frozen=True)
+class RunResult:
+    """What :func:`run` did.
+
+    Attributes:
+        out_dir: the finished run folder.
+        metrics: the contents of ``metrics.json``.
+        skipped: True when the folder was already complete and nothing was run.
+    """
+
+    out_dir: Path
+    metrics: dict
+    skipped: bool = False
+
+
+def run_name(cfg: ExperimentConfig) -> str:
+    """The run folder name: ``cfg.run`` or scene[~offset]__method[+refiner]__b<budget>__s<seed>."""
+    if cfg.run:
+        return cfg.run
+    scene = Path(cfg.scene.name).stem
+    t = cfg.scene.translate_frac
+    if any(float(x) != 0.0 for x in t) or float(cfg.scene.rotate_deg) != 0.0:
+        scene += "~t" + ",".join(f"{float(x):g}" for x in t) + f"~r{float(cfg.scene.rotate_deg):g}"
+    method = cfg.placer.method + ("" if cfg.refiner.name == "none" else f"+{cfg.refiner.name}")
+    return f"{scene}__{method}__b{cfg.placer.budget}__s{cfg.seed}"
+
+
+def run_dir(cfg: ExperimentConfig) -> Path:
+    """``results_dir/name/<run name>``."""
+    return Path(cfg.results_dir) / cfg.name / run_name(cfg)
+
+
+def load_experiment_scene(scene_cfg) -> Any:
+    """The configured scene, moved by ``translate_frac`` × extent and rotated about +Y through its centre."""
+    from ..scene import axis_angle_rotation, load_scene, transform_scene
+
+    scene = load_scene(scene_cfg.name)
+    t = np.asarray(scene_cfg.translate_frac, np.float64)
+    deg = float(scene_cfg.rotate_deg)
+    if not t.any() and deg == 0.0:
+        return scene
+    lo, hi = (np.asarray(b, np.float64) for b in np.asarray(scene.bounds))
+    centre = 0.5 * (lo + hi)
+    rot = np.asarray(axis_angle_rotation([0.0, 1.0, 0.0], np.deg2rad(deg)), np.float64)
+    # x ↦ R (x − c) + c + t·extent
+    translation = centre - rot @ centre + t * (hi - lo)
+    return transform_scene(scene, rotation=rot, translation=translation)
+
+
+def _tree_nbytes(tree) -> int:
+    import jax
+
+    return int(sum(np.asarray(x).nbytes for x in jax.tree_util.tree_leaves(tree) if hasattr(x, "shape")))
+
+
+def _evaluate(scene, lf, cfg: ExperimentConfig, caster, key, out: Path) -> dict:
+    """Call ``probeplace.evaluate`` (built by issue 4); its EvalConfig gets the fields it declares."""
+    try:
+        from .. import evaluate as ev
+
+        evaluate, eval_config, write = ev.evaluate, ev.EvalConfig, ev.write_evaluation
+    except (ImportError, AttributeError):
+        raise EvaluationUnavailable(
+            "evaluation not available: probeplace.evaluate.evaluate is not built yet; "
+            "run with eval.enabled=false"
+        ) from None
+    wanted = {
+        "width": cfg.eval.width,
+        "height": cfg.eval.height,
+        "spp": cfg.tracer.spp,
+        "max_depth": cfg.tracer.max_depth,
+        "glossy_spp": cfg.eval.glossy_spp,
+        "glossy_ref_spp": cfg.eval.glossy_ref_spp,
+        "shading": cfg.eval.shading,
+        "timing_repeats": cfg.eval.timing_repeats,
+        "progress": cfg.progress,
+    }
+    names = (
+        {f.name for f in dataclasses.fields(eval_config)} if dataclasses.is_dataclass(eval_config) else set()
+    )
+    if not names:  # an eqx.Module / plain class: use its annotations
+        names = set(getattr(eval_config, "__annotations__", {}))
+    config = eval_config(**{k: v for k, v in wanted.items() if k in names})
+    result = evaluate(scene, lf, view=cfg.eval.view, config=config, caster=caster, key=key)
+    write(result, out / "eval")
+    return dict(result.metrics)
+
+
+def run(cfg: Any, *, force: bool = False) -> RunResult:
+    """Run one experiment; a finished run folder is kept and returned as ``skipped`` unless ``force``.
+
+    Args:
+        cfg: an :class:`ExperimentConfig`, a dict or an OmegaConf node (Hydra's ``cfg``).
+        force: redo a finished run.
+
+    Returns:
+        :class:`RunResult` with the run folder and its metrics.
+
+    Raises:
+        ConfigError: invalid or unknown configuration keys (the message names the key).
+        EvaluationUnavailable: ``eval.enabled`` without ``probeplace.evaluate``.
+    """
+    cfg = to_config(cfg)
+    final = run_dir(cfg)
+    if _results.is_complete(final) and not force:
+        import json
+
+        _check_same_config(cfg, final)
+        log.info("skip %s (finished)", final)
+        return RunResult(final, json.loads((final / "metrics.json").read_text()), skipped=True)
+    if cfg.eval.enabled:  # fail before any work, not after the bake
+        try:
+            from ..evaluate import evaluate  # noqa: F401
+        except ImportError:
+            raise EvaluationUnavailable(
+                "evaluation not available: probeplace.evaluate.evaluate is not built yet; "
+                "run with eval.enabled=false"
+            ) from None
+
+    partial = _results.begin(final)
+    try:
+        metrics = _execute(cfg, partial, final)
+    except BaseException:  # an error or a signal (SIGTERM → KeyboardInterrupt in experiments/run.py)
+        import shutil
+
+        shutil.rmtree(partial, ignore_errors=True)
+        raise
+    return RunResult(_results.commit(partial, final), metrics)
+
+
+def _execute(cfg: ExperimentConfig, partial: Path, final: Path) -> dict:
+    """Every stage of :func:`run`, writing into ``partial``; returns the metrics."""
+    import jax
+    from omegaconf import OmegaConf
+    from tqdm.auto import tqdm
+
+    from .._core import save_probe_set
+    from ..placement import place, save_top_view
+
+    cfg_dict = config_to_dict(cfg)
+    (partial / "config.yaml").write_text(OmegaConf.to_yaml(OmegaConf.create(cfg_dict)))
+    _results.write_json(partial / "env.json", _results.environment())
+
+    key = jax.random.key(cfg.seed)
+    k_bake, k_eval = jax.random.split(key)
+    timings: dict[str, float] = {}
+    metrics: dict = {
+        "experiment": cfg.name,
+        "run": final.name,
+        "scene": cfg.scene.name,
+        "translate_frac": list(cfg.scene.translate_frac),
+        "rotate_deg": float(cfg.scene.rotate_deg),
+        "method": cfg.placer.method,
+        "refiner": cfg.refiner.name,
+        "label": cfg.placer.method + ("" if cfg.refiner.name == "none" else f"+{cfg.refiner.name}"),
+        "budget": cfg.placer.budget,
+        "seed": cfg.seed,
+        "timings": timings,
+    }
+    stages = ["scene", "place"] + ["bake"] * cfg.bake.enabled + ["eval"] * cfg.eval.enabled
+    stages += ["export"] * bool(cfg.export.formats)
+    bar = tqdm(total=len(stages), desc=final.name, unit="stage", disable=not cfg.progress, leave=False)
+
+    t0 = time.perf_counter()
+    scene = load_experiment_scene(cfg.scene)
+    timings["scene_s"] = time.perf_counter() - t0
+    views = [c.name for c in scene.views]
+    if cfg.eval.enabled and cfg.eval.view not in views:  # refuse before placing and baking
+        raise ConfigError(
+            f"eval.view: scene {cfg.scene.name!r} has no view {cfg.eval.view!r}; views: {views}"
+        )
+    bar.update()
+
+    bar.set_postfix_str("place")
+    t0 = time.perf_counter()
+    probes, meta = place(
+        scene,
+        method=cfg.placer.method,
+        budget=cfg.placer.budget,
+        refiner=None if cfg.refiner.name == "none" else cfg.refiner.name,
+        objective=cfg.placer.objective,
+        seed=cfg.seed,
+        target=cfg.placer.target,
+        n_opt_samples=cfg.placer.n_opt_samples,
+        **({"options": dict(cfg.placer.options)} if cfg.placer.options else {}),
+    )
+    timings["place_s"] = time.perf_counter() - t0
+    bar.update()
+    active = np.asarray(probes.active)
+    pos = np.asarray(probes.pos_world)[active]
+    metrics.update(
+        n_probes=int(active.sum()),
+        coverage=meta.get("coverage"),
+        target_reached=meta.get("target_reached"),
+        min_probe_clearance=meta.get("min_probe_clearance"),
+        converged=_converged(meta),
+        placement_timings=meta.get("timings", {}),
+    )
+    metrics["inside_geometry"] = _inside_sdf(scene, pos)
+    save_probe_set(partial / "probes.json", probes, units_m=scene.unit_m, metadata=_jsonable(meta))
+    save_top_view(scene, pos, partial / "top_view.png", title=f"{final.name}: {len(pos)} probes")
+
+    if cfg.bake.enabled:
+        from ..probes import BakeConfig, bake_probes, path_traced_radiance, save_probes
+        from ..render import default_caster
+
+        bar.set_postfix_str("bake")
+        caster = default_caster(scene)
+        t0 = time.perf_counter()
+        lf = bake_probes(
+            scene,
+            _padded(probes) if cfg.bake.pad_pow2 else probes,
+            caster=caster,
+            radiance_fn=path_traced_radiance(
+                scene, spp=cfg.bake.spp, max_depth=cfg.bake.max_depth, caster=caster
+            ),
+            key=k_bake,
+            config=BakeConfig(
+                radiance_res=cfg.bake.radiance_res,
+                n_sub=cfg.bake.n_sub,
+                probes_per_batch=cfg.bake.probes_per_batch,
+                progress=cfg.progress,
+            ),
+        )
+        jax.block_until_ready(lf)
+        timings["bake_s"] = time.perf_counter() - t0
+        bar.update()
+        save_probes(partial / "probes_baked.npz", lf)
+        metrics["inside_bake"] = int((np.asarray(lf.inside) & np.asarray(lf.active)).sum())
+        # as stored, for the real probes only (padding rows are not part of the method's cost)
+        per_probe = _tree_nbytes(lf) / int(lf.pos_world.shape[0])
+        metrics["memory"] = {"bytes_per_probe": per_probe, "bytes_total": per_probe * metrics["n_probes"]}
+        if cfg.eval.enabled:
+            bar.set_postfix_str("eval")
+            t0 = time.perf_counter()
+            metrics["eval"] = _evaluate(scene, lf, cfg, caster, k_eval, partial)
+            timings["eval_s"] = time.perf_counter() - t0
+            bar.update()
+        if cfg.export.formats:
+            from ..export import export_probes, read_probes
+
+            bar.set_postfix_str("export")
+            data = read_probes(partial / "probes_baked.npz")
+            (partial / "export").mkdir()
+            files = []
+            for fmt in cfg.export.formats:
+                files += [
+                    str(p.relative_to(partial))
+                    for p in export_probes(data, fmt, partial / "export" / f"probes.{fmt}")
+                ]
+            metrics["exported"] = files
+            bar.update()
+    bar.close()
+    timings["place_bake_s"] = timings["place_s"] + timings.get("bake_s", 0.0)
+    metrics["failures"] = failures(metrics)
+    _results.write_json(partial / "metrics.json", metrics)
+    return metrics
+
+
+# Keys that do not change a run's results: a finished run with other values here is still the same run.
+_NOT_RESULTS = ("progress", "results_dir")
+
+
+def _check_same_config(cfg: ExperimentConfig, final: Path) -> None:
+    """A finished run is only skipped when it ran with this config; otherwise refuse naming the keys."""
+    from omegaconf import OmegaConf
+
+    old = _flat(OmegaConf.to_container(OmegaConf.load(final / "config.yaml")))
+    new = _flat(config_to_dict(cfg))
+    diff = sorted(k for k in old.keys() | new.keys() if k not in _NOT_RESULTS and old.get(k) != new.get(k))
+    if diff:
+        raise ConfigError(
+            f"{final} is a finished run with a different config ({', '.join(diff)} differ); "
+            "use another name=..., delete the folder, or run(..., force=True)"
+        )
+
+
+def _inside_sdf(scene, pos: np.ndarray) -> int:
+    """Probes with a negative signed distance (inside geometry, the SDF's sign contract; docs/sdf.md)."""
+    import jax
+    import jax.numpy as jnp
+
+    from ..geometry import build_sdf, sdf_value
+
+    if not len(pos):
+        return 0
+    grid = build_sdf(scene)
+    d = jax.vmap(sdf_value, in_axes=(None, 0))(grid, jnp.asarray(pos, jnp.float32))
+    return int((np.asarray(d) < 0).sum())
+
+
+def _padded(probes):
+    """``probes`` with inactive rows (copies of the first probe) up to a capacity from a few buckets:
+    a power of two from 8 to 64, then a multiple of 64."""
+    import jax.numpy as jnp
+
+    from .._core import ProbeSet
+
+    n = probes.capacity
+    cap = max(8, 1 << max(n - 1, 0).bit_length()) if n <= 64 else -(-n // 64) * 64
+    pad = cap - probes.capacity
+    if pad <= 0:
+        return probes
+    return ProbeSet(
+        pos_world=jnp.concatenate([probes.pos_world, jnp.repeat(probes.pos_world[:1], pad, axis=0)]),
+        active=jnp.concatenate([probes.active, jnp.zeros(pad, bool)]),
+        method=probes.method,
+    )
+
+
+def _flat(d: dict, prefix: str = "") -> dict:
+    out = {}
+    for k, v in d.items():
+        if isinstance(v, dict):
+            out.update(_flat(v, f"{prefix}{k}."))
+        else:
+            out[f"{prefix}{k}"] = v
+    return out
+
+
+def _converged(meta: dict) -> bool | None:
+    """Whether the refiner converged, when placement reports it (``None``: not reported / no refiner)."""
+    for k in ("refine_converged", "converged"):
+        if k in meta:
+            return bool(meta[k])
+    ref = meta.get("refine")
+    if isinstance(ref, dict) and "converged" in ref:
+        return bool(ref["converged"])
+    return None
+
+
+def unresolved_share(ev: dict) -> float | None:
+    """The share of light-field rays the tracer could not resolve, from the evaluation metrics."""
+    for k, v in ev.items():
+        if "unresolved" in k and isinstance(v, int | float):
+            return float(v)
+    return None
+
+
+def failures(m: dict) -> list[str]:
+    """Failure cases of the stability study: coverage < 100%, probes inside geometry (negative SDF or
+    the bake's back-face test), unresolved rays > 1%, optimiser not converged (each only when the run
+    measured it)."""
+    out = []
+    if m.get("coverage") is not None and m["coverage"] < 1.0 - 1e-9:
+        out.append("coverage<100%")
+    if m.get("inside_geometry") or m.get("inside_bake"):
+        out.append("inside-geometry")
+    u = unresolved_share(m.get("eval", {}) or {})
+    if u is not None and u > 0.01:
+        out.append("unresolved>1%")
+    if m.get("converged") is False:
+        out.append("not-converged")
+    return out
+
+
+def _jsonable(d):
+    if isinstance(d, dict):
+        return {str(k): _jsonable(v) for k, v in d.items()}
+    if isinstance(d, list | tuple):
+        return [_jsonable(v) for v in d]
+    if isinstance(d, np.generic):
+        return d.item()
+    if isinstance(d, np.ndarray):
+        return d.tolist()
+    if d is None or isinstance(d, str | int | float | bool):
+        return d
+    return str(d)
+
+
+__all__ = ["ConfigError", "EvaluationUnavailable", "RunResult", "run", "run_dir", "run_name"]

@@ -1,0 +1,38 @@
+"""Shared helpers of the experiment tests: Hydra composition of configs/ without running Hydra's app."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parents[2]
+CONFIGS = ROOT / "configs"
+PRESETS = sorted(p.stem for p in (CONFIGS / "experiment").glob("*.yaml"))
+
+
+def compose(overrides: list[str], *, hydra_cfg: bool = False):
+    """The config experiments/run.py would get for ``overrides`` (with ``hydra`` when ``hydra_cfg``)."""
+    from hydra import compose as hydra_compose
+    from hydra import initialize_config_dir
+    from hydra.core.global_hydra import GlobalHydra
+
+    from probeplace.experiment import register_configs
+
+    if not GlobalHydra.instance().is_initialized():  # once per process: initialising is the slow part
+        register_configs()
+        initialize_config_dir(config_dir=str(CONFIGS), version_base="1.3").__enter__()
+    return hydra_compose("config", overrides=overrides, return_hydra_config=hydra_cfg)
+
+
+def sweep_params(preset: str) -> dict[str, list[str]]:
+    """The preset's ``hydra.sweeper.params``, each expanded to its list of override strings."""
+    from hydra.core.override_parser.overrides_parser import OverridesParser
+
+    cfg = compose([f"+experiment={preset}"], hydra_cfg=True)
+    parser = OverridesParser.create()
+    out = {}
+    for key, value in cfg.hydra.sweeper.params.items():
+        (ov,) = parser.parse_overrides([f"{key}={value}"])
+        out[key] = (
+            list(ov.sweep_string_iterator()) if ov.is_sweep_override() else [ov.get_value_element_as_str()]
+        )
+    return out

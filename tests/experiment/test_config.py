@@ -1,0 +1,135 @@
+"""Config schema: Hydra composition of every group and preset; invalid values and unknown keys are
+rejected with a ConfigError that names the key."""
+
+from __future__ import annotations
+
+import re
+
+import pytest
+
+from probeplace._core import ConfigError
+from probeplace.experiment import ExperimentConfig, run, run_name, to_config
+
+from ._util import CONFIGS, PRESETS, compose, sweep_params
+
+
+def test_default_config_composes_to_schema_defaults():
+    cfg = to_config(compose([]))
+    assert isinstance(cfg, ExperimentConfig)
+    # configs/ group defaults restate the schema defaults: composing them changes nothing
+    assert cfg == to_config({})
+
+
+@pytest.mark.parametrize(
+    "group", ["scene", "placer", "refiner", "bake", "tracer", "eval", "export", "method"]
+)
+def test_every_group_option_composes_and_validates(group):
+    for option in sorted(p.stem for p in (CONFIGS / group).glob("*.yaml")):
+        extra = ["eval=none"] if (group, option) == ("bake", "none") else []  # eval needs a bake
+        cfg = to_config(compose([f"{group}={option}", *extra]))
+        if group == "placer":
+            assert cfg.placer.method == option.replace("_", "-").replace("skeleton-medial", "skeleton+medial")
+        if group == "refiner":
+            assert cfg.refiner.name == option
+
+
+@pytest.mark.parametrize("preset", PRESETS)
+def test_every_swept_value_of_a_preset_validates(preset):
+    params = sweep_params(preset)
+    assert params, f"{preset} sweeps nothing"
+    for key, values in params.items():
+        for v in values:
+            cfg = to_config(compose([f"+experiment={preset}", f"{key}={v}"]))
+            assert cfg.name == preset
+
+
+def test_presets_cover_the_issue():
+    cornell = sweep_params("cornell_comparison")["method"]
+    from probeplace.placement import REFINERS
+
+    assert {"grid", "lod_grid_64", "skeleton", "vardis"} <= set(cornell)
+    assert {f"skeleton_{r}" for r in REFINERS} <= set(cornell)
+    stab = sweep_params("stability")
+    assert set(stab["scene"]) == {"rooms", "temple", "courtyard"}
+    assert len(stab["seed"]) >= 10
+    assert len(stab["scene.translate_frac"]) >= 2 and len(stab["scene.rotate_deg"]) >= 2
+
+
+BAD = [
+    ({"placer": {"budget": -3}}, "placer.budget: must be 'auto' or a positive integer, got -3"),
+    ({"placer": {"budget": "lots"}}, "placer.budget"),
+    ({"placer": {"method": "random"}}, "placer.method"),
+    ({"placer": {"target": 0.0}}, "placer.target"),
+    ({"placer": {"n_opt_samples": "many"}}, "placer.n_opt_samples"),
+    ({"refiner": {"name": "newton"}}, "refiner.name"),
+    ({"placer": {"method": "grid", "options": {"spacing": 3}}}, "placer.options.spacing"),
+    ({"placer": {"method": "skeleton", "options": {"jitter": 0.5}}}, "placer.options.jitter"),
+    ({"bake": {"radiance_res": 12}}, "bake.radiance_res: must be a power of two"),
+    ({"bake": {"spp": 0}}, "bake.spp"),
+    ({"tracer": {"max_depth": 2}}, "tracer.max_depth"),
+    ({"eval": {"shading": "phong"}}, "eval.shading"),
+    ({"eval": {"glossy_ref_spp": 1}}, "eval.glossy_ref_spp"),
+    ({"bake": {"enabled": False}}, "eval.enabled"),
+    ({"export": {"formats": ["fbx"]}}, "export.formats[0]"),
+    ({"scene": {"translate_frac": [1.0, 0.0, 0.0]}}, "scene.translate_frac"),
+    ({"scene": {"rotate_deg": 400.0}}, "scene.rotate_deg"),
+    ({"seed": -1}, "seed"),
+    ({"name": "../escape"}, "name"),
+    # unknown keys (struct mode) and wrong types, at any depth
+    ({"placer": {"buget": 3}}, "placer.buget"),
+    ({"bake": {"res": 8}}, "bake.res"),
+    ({"colour": "red"}, "colour"),
+    ({"eval": {"width": "wide"}}, "eval.width"),
+]
+
+
+@pytest.mark.parametrize(("override", "key"), BAD, ids=[m for _, m in BAD])
+def test_invalid_values_and_unknown_keys_name_the_key(override, key, tmp_path):
+    with pytest.raises(ConfigError, match="^" + re.escape(key)):
+        to_config(override)
+    # run() refuses before any work: nothing is written
+    with pytest.raises(ConfigError, match=re.escape(key)):
+        run({**override, "results_dir": str(tmp_path)})
+    assert not any(tmp_path.iterdir())
+
+
+def test_hydra_rejects_unknown_override_naming_it():
+    from hydra.errors import ConfigCompositionException
+
+    with pytest.raises(ConfigCompositionException, match=r"placer\.buget"):
+        compose(["placer.buget=3"])
+
+
+def test_run_name_is_unique_per_swept_coordinate():
+    names = {
+        run_name(to_config({"scene": {"name": s}, "placer": {"method": m, "budget": b}, "seed": k}))
+        for s in ("cornell_box", "rooms")
+        for m in ("grid", "skeleton")
+        for b in ("auto", 8)
+        for k in (0, 1)
+    }
+    assert len(names) == 16
+    moved = to_config({"scene": {"translate_frac": [0.01, 0.0, 0.0], "rotate_deg": 2.5}})
+    assert run_name(moved) != run_name(to_config({}))
+
+
+def test_scene_offset_moves_the_scene_relative_to_the_grid():
+    """translate_frac moves the bounds by that fraction of the extent; rotate_deg turns the scene about
+    +Y through its bounding-box centre (a quarter turn swaps the x and z extents, keeps the centre)."""
+    import numpy as np
+
+    from probeplace.experiment import SceneConfig, load_experiment_scene
+
+    base = np.asarray(load_experiment_scene(SceneConfig()).bounds, np.float64)
+    ext = base[1] - base[0]
+    moved = np.asarray(load_experiment_scene(SceneConfig(translate_frac=[0.1, -0.05, 0.02])).bounds)
+    np.testing.assert_allclose(moved, base + np.array([0.1, -0.05, 0.02]) * ext, rtol=1e-5, atol=1e-3)
+    turned = np.asarray(load_experiment_scene(SceneConfig(rotate_deg=90.0)).bounds, np.float64)
+    np.testing.assert_allclose(turned.mean(0), base.mean(0), atol=1e-3 * ext.max())
+    np.testing.assert_allclose((turned[1] - turned[0])[[2, 1, 0]], ext, rtol=1e-5)
+
+
+def test_unknown_view_is_refused_before_any_work(tmp_path):
+    with pytest.raises(ConfigError, match=r"^eval\.view: scene 'cornell_box' has no view 'CameraMain'"):
+        run({"eval": {"view": "CameraMain"}, "results_dir": str(tmp_path)})
+    assert not [p for p in (tmp_path / "default").iterdir() if not p.name.startswith(".")]

@@ -1,0 +1,117 @@
+"""Every preset runs end to end with a tiny override into tmp_path, and the report is drawn from it."""
+
+from __future__ import annotations
+
+import dataclasses
+import json
+
+import numpy as np
+import pytest
+
+from probeplace._core import ConfigError, load_probe_set
+from probeplace.experiment import is_complete, make_report, run, to_config
+
+from ._util import PRESETS, compose, sweep_params
+
+# Small enough to run in seconds, large enough for every stage to do real work.
+TINY = [
+    "placer.budget=2",
+    "placer.n_opt_samples=200",
+    "bake.radiance_res=4",
+    "bake.spp=1",
+    "bake.n_sub=1",
+    "eval.width=8",
+    "eval.height=8",
+    "eval.glossy_spp=1",
+    "eval.glossy_ref_spp=2",
+    "eval.timing_repeats=1",
+    "tracer.spp=2",
+    "tracer.max_depth=3",
+    "progress=false",
+]
+
+
+def _tiny_run(preset: str, tmp_path, extra: list[str] = ()):
+    """The preset's first sweep point (skeleton placement: cheap and always available), tiny sizes."""
+    point = [f"{k}={v[0]}" for k, v in sweep_params(preset).items() if k != "method"]
+    cfg = to_config(
+        compose(
+            [f"+experiment={preset}", *point, "method=skeleton", *TINY, f"results_dir={tmp_path}", *extra]
+        )
+    )
+    return cfg, run(cfg)
+
+
+def _check_run(cfg, res):
+    d = res.out_dir
+    assert d.parent.name == cfg.name == res.metrics["experiment"] and is_complete(d)
+    names = {p.name for p in d.iterdir()}
+    assert {"config.yaml", "metrics.json", "env.json", "probes.json", "top_view.png", "DONE"} <= names
+    m = json.loads((d / "metrics.json").read_text())
+    assert m == json.loads(json.dumps(res.metrics))
+    # the resolved config round-trips to the config that ran
+    from omegaconf import OmegaConf
+
+    assert to_config(OmegaConf.load(d / "config.yaml")) == cfg
+    env = json.loads((d / "env.json").read_text())
+    assert {"python", "jax", "numpy", "git", "device"} <= set(env)
+    probes, _ = load_probe_set(d / "probes.json")
+    assert probes.n_active == m["n_probes"] <= 2
+    assert m["timings"]["place_s"] > 0
+    if cfg.bake.enabled:
+        assert "probes_baked.npz" in names
+        with np.load(d / "probes_baked.npz") as z:
+            # padded with inactive rows to a power-of-two capacity; the active rows are the placed probes
+            cap = len(z["pos_world"])
+            assert cap >= 8 and cap & (cap - 1) == 0 and z["active"].sum() == m["n_probes"]
+            assert np.allclose(z["pos_world"][z["active"]], probes.pos_world)
+    else:
+        assert "probes_baked.npz" not in names
+    if cfg.eval.enabled:
+        ev = m["eval"]
+        assert ev["width"] == 8 and np.isfinite(ev["mse_glossy_indirect"])
+        assert (d / "eval" / "images.exr").is_file()
+    return m
+
+
+FAST = [p for p in PRESETS if p != "sponza_comparison"]
+
+
+@pytest.mark.parametrize(
+    ("preset", "evaluate"),
+    [(p, False) for p in FAST] + [pytest.param("cornell_comparison", True, marks=pytest.mark.slow)],
+    ids=[*FAST, "cornell_comparison-eval"],
+)
+def test_preset_runs_tiny(preset, evaluate, tmp_path):
+    """Default run: the presets without the evaluation (its compile dominates: ~1-4 min on 2 cores;
+    tests/evaluate covers it); slow: with it, and the report's charts from the real run."""
+    cfg, res = _tiny_run(preset, tmp_path, [] if evaluate else ["eval=none"])
+    m = _check_run(cfg, res)
+    if preset == "stability":
+        assert not cfg.bake.enabled and cfg.scene.name == "rooms"
+        assert isinstance(m["failures"], list)
+    # a second call finds the run finished and does nothing
+    again = run(dataclasses.replace(cfg, progress=True))
+    assert again.skipped and again.out_dir == res.out_dir
+    # ... but not when the same run name would now mean other settings
+    other = dataclasses.replace(cfg, placer=dataclasses.replace(cfg.placer, target=0.9))
+    with pytest.raises(ConfigError, match=r"different config \(placer\.target differ\)"):
+        run(other)
+    report = make_report(res.out_dir.parent)
+    text = report.read_text()
+    assert res.out_dir.name in text
+    pngs = {p.name for p in report.parent.glob("*.png")}
+    if cfg.eval.enabled:
+        assert {"mse_vs_count.png", "mse_vs_time.png", "memory_vs_mse.png", "error_images.png"} <= pngs
+    assert (report.parent / "top_views" / f"{res.out_dir.name}.png").is_file()
+
+
+@pytest.mark.slow
+def test_sponza_preset_runs_tiny(tmp_path, monkeypatch):
+    from probeplace.scene import SCENE_PATH_ENV
+
+    from ..helpers import shared_scene_path
+
+    monkeypatch.setenv(SCENE_PATH_ENV, str(shared_scene_path("crytek_sponza.glb").parent))
+    cfg, res = _tiny_run("sponza_comparison", tmp_path)
+    _check_run(cfg, res)

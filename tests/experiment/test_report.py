@@ -1,0 +1,119 @@
+"""The report from saved files only: synthetic runs with known MSE curves (closed-form oracles for the
+equal-count / equal-quality tables), a brute-force Pareto front, partial runs ignored."""
+
+from __future__ import annotations
+
+import json
+import re
+
+import numpy as np
+import pytest
+from omegaconf import OmegaConf
+
+from probeplace._core import ProbeplaceError, ProbeSet, save_probe_set
+from probeplace.experiment import DONE, make_report, pareto_front, run_name, to_config
+from probeplace.experiment._schema import config_to_dict
+
+# MSE = A / n (a straight line in log-log, so log-log interpolation is exact)
+A = {"grid": 8.0, "skeleton": 4.0, "vardis": 2.0}
+COUNTS = {"grid": [4, 8, 16], "skeleton": [2, 4, 8], "vardis": [2, 4]}
+
+
+def _fake_run(exp, label, n, *, done=True, exr=False):
+    import jax.numpy as jnp
+
+    from probeplace.render._image_io import save_exr
+
+    cfg = to_config({"name": exp.name, "placer": {"method": label, "budget": n}})
+    d = exp / run_name(cfg)
+    d.mkdir(parents=True)
+    (d / "config.yaml").write_text(OmegaConf.to_yaml(OmegaConf.create(config_to_dict(cfg))))
+    rng = np.random.default_rng(n)
+    pos = rng.uniform(50.0, 500.0, (n, 3)).astype(np.float32)
+    save_probe_set(d / "probes.json", ProbeSet(pos_world=jnp.asarray(pos), active=jnp.ones(n, bool)))
+    mse = A[label] / n
+    metrics = {
+        "experiment": exp.name,
+        "run": d.name,
+        "scene": "cornell_box",
+        "label": label,
+        "method": label,
+        "refiner": "none",
+        "budget": n,
+        "seed": 0,
+        "n_probes": n,
+        "coverage": 1.0,
+        "timings": {"place_s": 1.0 * n, "bake_s": 0.5 * n, "place_bake_s": 1.5 * n},
+        "memory": {"bytes_total": 1000 * n},
+        "failures": [],
+        "eval": {
+            "mse_glossy_indirect": mse,
+            "mse_diffuse_indirect": 2 * mse,
+            "mse_full": 3 * mse,
+            "noise_floor_glossy_indirect": 1e-3,
+            "shading_s_per_frame": 0.01 * n,
+            "unresolved_share": 0.0,
+        },
+    }
+    (d / "metrics.json").write_text(json.dumps(metrics))
+    if exr:
+        err = np.full((6, 5, 3), mse, np.float32)
+        (d / "eval").mkdir()
+        save_exr(
+            d / "eval" / "images.exr", {"probe_full": err, "error_glossy_indirect": err}, main="probe_full"
+        )
+    if done:
+        (d / DONE).write_text("ok\n")
+    return d
+
+
+def test_pareto_front_matches_brute_force():
+    rng = np.random.default_rng(0)
+    for _ in range(20):
+        pts = [tuple(p) for p in rng.uniform(0, 1, (int(rng.integers(1, 30)), 2))]
+        dominated = {
+            i
+            for i, p in enumerate(pts)
+            for q in pts
+            if q != p and q[0] <= p[0] and q[1] <= p[1] and (q[0] < p[0] or q[1] < p[1])
+        }
+        assert set(pareto_front(pts)) == set(range(len(pts))) - dominated
+
+
+def test_report_from_saved_files(tmp_path):
+    exp = tmp_path / "synth"
+    for label, counts in COUNTS.items():
+        for n in counts:
+            _fake_run(exp, label, n, exr=(n == 4))
+    unfinished = _fake_run(exp, "vardis", 3, done=False)  # killed before DONE: must not be read
+    report = make_report(exp)
+    assert report == exp / "report" / "report.md"
+    text = report.read_text()
+    for png in ("mse_vs_count", "mse_vs_time", "memory_vs_mse", "error_images"):
+        assert (report.parent / f"{png}.png").stat().st_size > 1000
+        assert f"({png}.png)" in text
+    assert len(list((report.parent / "top_views").glob("*.png"))) == sum(map(len, COUNTS.values()))
+    assert unfinished.name not in text
+    assert text.count("| cornell_box__") == sum(map(len, COUNTS.values()))
+
+    g_count = 8  # median of the grid's counts
+    g_mse = A["grid"] / g_count
+    eq_count = text.split("equal probe count")[1].split("##")[0]
+    for label in ("grid", "skeleton"):  # the grid's count lies inside both measured ranges: interpolated
+        v = A[label] / g_count
+        assert re.search(rf"\| {label} \| {v:.3g} \| {v / g_mse:.2f} \| interpolated", eq_count)
+    assert re.search(r"\| vardis \| [^|]+ \| [^|]+ \| nearest count measured: 4", eq_count)
+    eq_quality = text.split("equal quality")[1].split("##")[0]
+    for label, counts in COUNTS.items():
+        need = min(n for n in counts if A[label] / n <= g_mse)
+        assert re.search(rf"\| {label} \| {need} \|", eq_quality)
+    eq_time = text.split("equal time")[1].split("##")[0]
+    # within the grid's 12 s: skeleton's best is its 8-probe run, vardis's its 4-probe run
+    assert re.search(rf"\| skeleton \| {A['skeleton'] / 8:.3g} \| 8 \|", eq_time)
+    assert re.search(rf"\| vardis \| {A['vardis'] / 4:.3g} \| 4 \|", eq_time)
+
+
+def test_report_refuses_an_empty_experiment(tmp_path):
+    _fake_run(tmp_path / "e", "grid", 2, done=False)
+    with pytest.raises(ProbeplaceError, match="no finished run"):
+        make_report(tmp_path / "e")

@@ -1,0 +1,116 @@
+"""The baselines as ``place`` methods (grid, lod-grid, vardis) and the ``probeplace place`` options."""
+
+import json
+
+import numpy as np
+import pytest
+
+from probeplace._core import ConfigError
+from probeplace.cli import main
+from probeplace.placement import lod_probe_grid, place, uniform_probe_grid
+from probeplace.placement._uniform import scene_box
+
+
+def test_grid_method_matches_uniform_grid(cornell):
+    probes, meta = place(cornell, method="grid", options={"dims": (3, 3, 3), "inside": "disable"})
+    r = uniform_probe_grid(cornell, dims=(3, 3, 3), inside="disable")
+    expect = np.asarray(r.probes.pos_world)[np.asarray(r.probes.active)]
+    np.testing.assert_array_equal(np.asarray(probes.pos_world), expect)
+    assert probes.method == "grid" and meta["n_probes"] == len(expect)
+    assert meta["config"]["dims"] == [3, 3, 3] and 0.0 < meta["coverage"] <= 1.0
+    assert meta["n_disabled"] == r.n_disabled and "total_s" in meta["timings"]
+
+
+@pytest.mark.slow  # several SDF-classified grids + coverage: ~15 s
+def test_grid_budget_is_the_finest_grid_within_it(cornell):
+    probes, meta = place(cornell, method="grid", budget=40)
+    assert probes.capacity <= 40
+    # invariant of the spacing search: the next finer lattice (10% smaller spacing) exceeds the budget
+    from probeplace.placement import grid_dims
+
+    lo, hi = scene_box(cornell)
+    dims = tuple(meta["config"]["dims"])
+    spacing = float(np.max(hi - lo))
+    while tuple(grid_dims(lo, hi, spacing)) != dims:
+        spacing *= 0.9
+    nxt = dims
+    while nxt == dims:
+        spacing *= 0.9
+        nxt = grid_dims(lo, hi, spacing)
+    assert uniform_probe_grid(cornell, dims=nxt, inside="disable").probes.n_active > 40
+
+
+def test_lod_grid_method(cornell):
+    probes, meta = place(cornell, method="lod-grid", options={"base_divisions": (2, 2, 2), "levels": 2})
+    g = lod_probe_grid(cornell, base_divisions=(2, 2, 2), sub_division_level=2)
+    np.testing.assert_array_equal(np.asarray(probes.pos_world), g.positions)
+    assert sum(meta["lod_levels"]) == g.probe_count == meta["n_probes"]
+    small, meta2 = place(
+        cornell, method="lod-grid", budget=g.probe_count - 1, options={"base_divisions": (2, 2, 2)}
+    )
+    assert small.capacity <= g.probe_count - 1 and meta2["config"]["levels"] < 3
+
+
+VARDIS_OPTS = {"dense_probes": 64, "n_eval": 64, "n_dirs": 64, "spp": 2, "max_depth": 3}
+
+
+@pytest.mark.slow  # path-traced probe SH + coverage: ~40 s on 2 cores
+def test_vardis_method_target_count(cornell):
+    probes, meta = place(cornell, method="vardis", budget=20, options=VARDIS_OPTS)
+    assert probes.capacity == 20 and probes.method == "vardis"
+    lo, hi = scene_box(cornell)
+    r = uniform_probe_grid(cornell, spacing=float(np.prod(hi - lo) / 64) ** (1 / 3), inside="disable")
+    dense = np.asarray(r.probes.pos_world)[np.asarray(r.probes.active)]
+    assert meta["n_dense"] == len(dense)
+    # survivors are a subset of the dense set
+    d = np.linalg.norm(np.asarray(probes.pos_world)[:, None] - dense[None], axis=-1).min(1)
+    assert np.all(d == 0)
+    h = meta["vardis_history"]
+    assert h["count"][0] == len(dense) and h["count"][-1] == 20 and h["error"][0] == 0.0
+    assert meta["refined"] is False and meta["timings"]["probe_values_s"] > 0
+    # determinism: same seed → same dense values, evaluation points and removal order
+    again, meta2 = place(cornell, method="vardis", budget=20, options=VARDIS_OPTS)
+    np.testing.assert_array_equal(np.asarray(again.pos_world), np.asarray(probes.pos_world))
+    assert meta2["vardis_history"] == h
+
+
+def test_bad_options(cornell):
+    with pytest.raises(ConfigError, match="unknown grid options"):
+        place(cornell, method="grid", options={"spacing": 3})
+    with pytest.raises(ConfigError, match="options apply"):
+        place(cornell, method="skeleton", options={"dims": 3})
+    with pytest.raises(ConfigError, match="method"):
+        place(cornell, method="octree")
+
+
+def test_cli_place_grid(tmp_path, capsys):
+    out = tmp_path / "g.json"
+    rc = main(
+        [
+            "place",
+            "cornell_box",
+            "--method",
+            "grid",
+            "-o",
+            "dims=2,2,2",
+            "-o",
+            "inside=keep",
+            "--out",
+            str(out),
+        ]
+    )
+    assert rc == 0
+    data = json.loads(out.read_text())
+    assert "8 probes" in capsys.readouterr().out
+    assert "grid" in json.dumps(data)
+    assert main(["place", "cornell_box", "--method", "grid", "-o", "dims"]) == 2  # KEY=VALUE required
+
+
+@pytest.mark.slow  # refiner on the coverage objective: ~30 s
+def test_baseline_refinement_never_lowers_coverage(cornell):
+    _, base = place(cornell, method="grid", options={"dims": (2, 2, 2)})
+    probes, meta = place(
+        cornell, method="grid", options={"dims": (2, 2, 2)}, refiner="ascent", n_opt_samples=400
+    )
+    assert isinstance(meta["refined"], bool) and meta["coverage"] >= base["coverage"]
+    assert probes.capacity == base["n_probes"] and "refine_s" in meta["timings"]

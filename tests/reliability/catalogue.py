@@ -1,0 +1,824 @@
+"""The bad-input catalogue (issue 9): every input probeplace refuses or repairs, with the expected outcome.
+
+One :class:`Entry` per input. ``test_bad_input.py`` runs each one; ``make_errors_doc.py`` runs them again
+to write the table of ``docs/errors.md`` with the exact messages, so the document cannot drift from the
+code. Entries already covered by ``tests/scene/test_bad_input.py`` and the stage tests (missing .glb,
+random bytes per format, truncated GLB, NaN vertices, degenerate triangles, bad MTL values, …) are not
+repeated here; the document lists them from those tests' messages under "Also refused".
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import functools
+import json
+import struct
+from collections.abc import Callable
+from pathlib import Path
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+
+from probeplace._core import ConfigError, ProbeSet, ResourceError, SceneError
+from probeplace._core import ProbeplaceError as ProbeplaceError
+from probeplace.scene import build_scene, make_materials
+from probeplace.scene._primitives import box
+
+# A closed tetrahedron, outward winding: the smallest valid mesh in every format.
+TET_V = np.array([[0, 0, 0], [1, 0, 0], [0, 1, 0], [0, 0, 1]], np.float64)
+TET_F = np.array([[0, 2, 1], [0, 1, 3], [0, 3, 2], [1, 2, 3]])
+ROOM_HI = np.array([4.0, 3.0, 5.0])
+
+
+def tet_obj(v=TET_V, f=TET_F) -> str:
+    return "".join(f"v {a} {b} {c}\n" for a, b, c in v) + "".join(
+        f"f {a + 1} {b + 1} {c + 1}\n" for a, b, c in f
+    )
+
+
+def tet_ply(v=TET_V, f=TET_F) -> str:
+    head = (
+        f"ply\nformat ascii 1.0\nelement vertex {len(v)}\nproperty float x\nproperty float y\n"
+        f"property float z\nelement face {len(f)}\nproperty list uchar int vertex_indices\nend_header\n"
+    )
+    return head + "".join(f"{a} {b} {c}\n" for a, b, c in v) + "".join(f"3 {a} {b} {c}\n" for a, b, c in f)
+
+
+def tet_gltf() -> str:
+    """A self-contained .gltf (buffer as a data URI)."""
+    import base64
+
+    vb = TET_V.astype(np.float32).tobytes()
+    ib = TET_F.astype(np.uint32).tobytes()
+    blob = vb + ib
+    doc = {
+        "asset": {"version": "2.0"},
+        "scene": 0,
+        "scenes": [{"nodes": [0]}],
+        "nodes": [{"mesh": 0}],
+        "meshes": [{"primitives": [{"attributes": {"POSITION": 0}, "indices": 1}]}],
+        "accessors": [
+            {
+                "bufferView": 0,
+                "componentType": 5126,
+                "count": 4,
+                "type": "VEC3",
+                "min": [0, 0, 0],
+                "max": [1, 1, 1],
+            },
+            {"bufferView": 1, "componentType": 5125, "count": 12, "type": "SCALAR"},
+        ],
+        "bufferViews": [
+            {"buffer": 0, "byteOffset": 0, "byteLength": len(vb)},
+            {"buffer": 0, "byteOffset": len(vb), "byteLength": len(ib)},
+        ],
+        "buffers": [
+            {
+                "byteLength": len(blob),
+                "uri": "data:application/octet-stream;base64," + base64.b64encode(blob).decode(),
+            }
+        ],
+    }
+    return json.dumps(doc)
+
+
+def tet_glb() -> bytes:
+    """The same tetrahedron as a GLB container (JSON chunk + BIN chunk)."""
+    vb = TET_V.astype(np.float32).tobytes()
+    ib = TET_F.astype(np.uint32).tobytes()
+    blob = vb + ib
+    doc = json.loads(tet_gltf())
+    doc["buffers"] = [{"byteLength": len(blob)}]
+    js = json.dumps(doc).encode()
+    js += b" " * (-len(js) % 4)
+    body = struct.pack("<II", len(js), 0x4E4F534A) + js + struct.pack("<II", len(blob), 0x004E4942) + blob
+    return struct.pack("<4sII", b"glTF", 2, 12 + len(body)) + body
+
+
+VALID = {".obj": lambda: tet_obj().encode(), ".ply": lambda: tet_ply().encode(),
+         ".gltf": lambda: tet_gltf().encode(), ".glb": tet_glb}  # fmt: skip
+
+# The 8-byte PNG signature and a 1×1 IHDR: a real image file given a mesh extension.
+PNG = (
+    b"\x89PNG\r\n\x1a\n" + struct.pack(">I", 13) + b"IHDR" + struct.pack(">IIBBBBB", 1, 1, 8, 2, 0, 0, 0)
+    + b"\0" * 4 + b"\0\0\0\0IEND\xaeB`\x82"
+)  # fmt: skip
+
+
+# ------------------------------------------------------------------------------------------ context
+class Ctx:
+    """What an entry may use: a temporary folder and small scenes / baked probes built once per process."""
+
+    def __init__(self, tmp: Path):
+        self.tmp = tmp
+
+    def write(self, name: str, data: bytes | str) -> Path:
+        p = self.tmp / name
+        p.write_bytes(data if isinstance(data, bytes) else data.encode())
+        return p
+
+    @staticmethod
+    def room(inverted: bool = False, lit: bool = False):
+        return _room(inverted, lit)
+
+    @staticmethod
+    def baked():
+        return _baked()
+
+    @staticmethod
+    def cornell(inverted: bool = False):
+        return cornell(inverted)
+
+
+def const_radiance(o, d, k):
+    """A constant-radiance stand-in for the path tracer (geometry maps are what the tracer reads)."""
+    n = o.shape[0]
+    return jnp.full((n, 3), 0.5, o.dtype), jnp.zeros((n, 3), o.dtype)
+
+
+@functools.cache
+def _room(inverted: bool, lit: bool):
+    """A 4×3×5 box room; faces point inward (seen from inside as front faces) unless ``inverted``."""
+    v, f = box(np.zeros(3), ROOM_HI)
+    mats = make_materials(["wall"], np.array([[0.5, 0.5, 0.5]]))
+    return build_scene(
+        "inverted_room" if inverted else "room",
+        v,
+        f if inverted else f[:, ::-1],
+        np.zeros(len(f), int),
+        mats,
+        sky_radiance=(1.0, 1.0, 1.0) if lit else (0.0, 0.0, 0.0),
+    )
+
+
+# probes_per_batch=1 and 16² maps everywhere: every bake batch of the Cornell box has the same shape, so
+# one compile serves all reliability bakes (catalogue, fixtures, determinism).
+TINY_BAKE = dict(
+    radiance_res=16, irradiance_res=4, moments_res=4, n_sub=1, probes_per_batch=1, progress=False
+)
+
+# Cornell box (556 × 548.8 × 559.2 mm, y up), as fractions of its size: probes in free space, one pair
+# coincident, one exactly on the floor (y = 0, clear of both blocks).
+CORNELL_PROBE_FRACTIONS = np.array(
+    [
+        [0.25, 0.3, 0.25],
+        [0.75, 0.3, 0.25],
+        [0.25, 0.7, 0.75],
+        [0.75, 0.7, 0.75],
+        [0.5, 0.5, 0.5],
+        [0.5, 0.5, 0.5],  # coincident with the previous
+        [0.5, 0.0, 0.1],  # on the floor
+        [0.15, 0.45, 0.6],
+    ]
+)
+
+
+# Near the back wall, above the tall block: from here the open front of the box subtends little, so an
+# inside-out box shows back faces in most directions.
+INSIDE_OUT_PROBE = np.array([278.0, 411.6, 475.3], np.float32)
+
+
+def cornell_probes(scene) -> np.ndarray:
+    lo, hi = (np.asarray(b, np.float64) for b in scene.bounds)
+    return (lo + CORNELL_PROBE_FRACTIONS * (hi - lo)).astype(np.float32)
+
+
+@functools.cache
+def cornell(inverted: bool = False):
+    """The Cornell box, or the same triangles with every winding reversed (normals pointing out of it)."""
+    from probeplace.scene import cornell_box
+
+    c = cornell_box()
+    if not inverted:
+        return c
+    return build_scene(
+        "inverted_cornell",
+        np.asarray(c.vertices),
+        np.asarray(c.faces)[:, ::-1],
+        np.asarray(c.tri_material),
+        c.materials,
+    )
+
+
+def bake(scene, pos, *, radiance_fn=const_radiance, key=None, **cfg):
+    """Bake ``pos`` with the brute-force caster, ``TINY_BAKE`` settings updated by ``cfg``."""
+    from probeplace.geometry import BruteForceCaster
+    from probeplace.probes import BakeConfig, bake_probes
+
+    probes = ProbeSet(pos_world=jnp.asarray(pos, jnp.float32), active=jnp.ones(len(pos), bool))
+    return bake_probes(
+        scene,
+        probes,
+        caster=BruteForceCaster(scene),
+        radiance_fn=radiance_fn,
+        key=jax.random.key(0) if key is None else key,
+        config=BakeConfig(**{**TINY_BAKE, **cfg}),
+    )
+
+
+@functools.cache
+def _baked():
+    """The Cornell probes baked at 16²: enough for make_tracer checks (shared with the test fixtures)."""
+    c = cornell()
+    return bake(c, cornell_probes(c))
+
+
+def probe_set(pos) -> ProbeSet:
+    pos = np.asarray(pos, np.float32)
+    return ProbeSet(pos_world=jnp.asarray(pos), active=jnp.ones(len(pos), bool))
+
+
+# ------------------------------------------------------------------------------------------ entries
+@dataclasses.dataclass(frozen=True)
+class Entry:
+    """One catalogue row.
+
+    Attributes:
+        id: short stable name (test id and document anchor).
+        stage: ``scene file``, ``scene data``, ``memory``, ``probes``, ``config``.
+        what: the bad input, in words.
+        run: the call, given a :class:`Ctx`.
+        error: the exception type expected, or ``None`` for a logged repair (the call succeeds).
+        match: regex the message (or, for repairs, the log) must match: it names the problem.
+        xfail: why the entry is expected to fail for now (a check still to be added by a file's owner).
+        wrong_type: a value of the wrong Python type; under the test suite's jaxtyping/beartype hook the
+            constructor's type check (a ``TypeCheckError`` naming the parameter) fires first, so the
+            ConfigError is checked in a subprocess without the hook.
+    """
+
+    id: str
+    stage: str
+    what: str
+    run: Callable[[Ctx], object]
+    error: type[ProbeplaceError] | None
+    match: str
+    xfail: str | None = None
+    wrong_type: bool = False
+
+
+def _load(name):
+    from probeplace.scene import load_scene
+
+    return lambda c: load_scene(c.tmp / name)
+
+
+def _load_bytes(name, data):
+    from probeplace.scene import load_scene
+
+    return lambda c: load_scene(c.write(name, data() if callable(data) else data))
+
+
+def _gltf_with_uri(uri: str) -> bytes:
+    doc = json.loads(tet_gltf())
+    doc["buffers"][0]["uri"] = uri
+    return json.dumps(doc).encode()
+
+
+def _cut(ext, frac=0.5):
+    return lambda: VALID[ext]()[: int(len(VALID[ext]()) * frac)]
+
+
+def _render_huge(c):
+    from probeplace.render import RenderConfig, render
+    from probeplace.scene import make_camera
+
+    cam = make_camera([2.0, 1.5, 4.5], [2.0, 1.5, 0.0], 60.0, "front")
+    return render(c.room(lit=True), cam, RenderConfig(width=10**6, height=10**6, spp=4), key=0)
+
+
+def _sdf_tiny_voxels(c):
+    from probeplace.geometry import build_sdf
+
+    return build_sdf(c.room(), voxel_size=1e-4, cache_dir=False)
+
+
+def _save_nan(c):
+    from probeplace._core import save_probe_set
+
+    return save_probe_set(c.tmp / "p.json", probe_set([[1.0, 1.0, 1.0], [np.nan, 0.0, 0.0]]))
+
+
+def _probe_json(doc):
+    def run(c):
+        from probeplace._core import load_probe_set
+
+        p = c.tmp / "p.json"
+        p.write_text(doc if isinstance(doc, str) else json.dumps(doc))
+        return load_probe_set(p)
+
+    return run
+
+
+_PS = "probeplace.ProbeSet/1"
+
+
+def _tracer_with(pos_fn, bounds=None):
+    def run(c):
+        import equinox as eqx
+
+        from probeplace.probes import make_tracer
+
+        lf = c.baked()
+        lf = eqx.tree_at(
+            lambda x: x.pos_world, lf, jnp.asarray(pos_fn(np.asarray(lf.pos_world)), jnp.float32)
+        )
+        return make_tracer(lf, c.cornell().bounds if bounds is None else jnp.asarray(bounds, jnp.float32))
+
+    return run
+
+
+def _with(value, row=0):
+    def f(p):
+        p = p.copy()
+        p[row] = value
+        return p
+
+    return f
+
+
+def _cfg(cls_path, **kw):
+    def run(c):
+        import importlib
+
+        mod, name = cls_path.rsplit(".", 1)
+        return getattr(importlib.import_module(mod), name)(**kw)
+
+    return run
+
+
+def _place(**kw):
+    def run(c):
+        from probeplace.placement import place
+
+        return place(c.room(), **kw)
+
+    return run
+
+
+def _bake_dark(c):
+    from probeplace.probes import path_traced_radiance
+
+    return path_traced_radiance(c.room(), spp=1)
+
+
+def _dark_sdf_ok(c):
+    """Placement needs geometry only: the SDF of an unlit scene builds (compared in the test)."""
+    from probeplace.geometry import build_sdf
+
+    return build_sdf(c.room(), cache_dir=False)
+
+
+CATALOGUE: list[Entry] = [
+    # --- scene files ------------------------------------------------------------------------------
+    *[
+        Entry(f"missing{e}", "scene file", f"missing {e} file", _load(f"nope{e}"), SceneError, "not found")
+        for e in (".gltf", ".obj", ".ply")
+    ],
+    Entry(
+        "truncated.obj",
+        "scene file",
+        "OBJ cut off mid-line (face with < 3 corners)",
+        _load_bytes("cut.obj", lambda: tet_obj()[:-4].encode()),
+        SceneError,
+        r"face with \d vertices \(need ≥ 3\): truncated or corrupt OBJ",
+    ),
+    Entry(
+        "truncated.ply",
+        "scene file",
+        "PLY cut off inside the header",
+        _load_bytes("cut.ply", _cut(".ply", 0.3)),
+        SceneError,
+        r"could not read the PLY file",
+    ),
+    Entry(
+        "truncated-body.ply",
+        "scene file",
+        "PLY cut off before its faces",
+        _load_bytes("cut2.ply", lambda: tet_ply().split("3 0 2 1")[0].encode()),
+        SceneError,
+        r"no triangles|could not read the PLY file",
+    ),
+    Entry(
+        "truncated.gltf",
+        "scene file",
+        "glTF JSON cut in half",
+        _load_bytes("cut.gltf", _cut(".gltf")),
+        SceneError,
+        r"corrupt glTF: the JSON does not parse",
+    ),
+    Entry(
+        "truncated-bin.glb",
+        "scene file",
+        "GLB cut inside its binary chunk",
+        _load_bytes("cut.glb", _cut(".glb", 0.9)),
+        SceneError,
+        r"truncated GLB",
+    ),
+    *[
+        Entry(
+            f"png-as{e}",
+            "scene file",
+            f"a PNG image renamed to {e}",
+            _load_bytes(f"img{e}", PNG),
+            SceneError,
+            {
+                ".obj": "corrupt OBJ: binary data",
+                ".ply": r"could not read the PLY file \(ValueError: Not a ply",
+                ".glb": r"not a GLB file \(magic b'\\x89PNG'",
+                ".gltf": "corrupt glTF: the JSON does not parse",
+            }[e],
+        )
+        for e in (".obj", ".ply", ".glb", ".gltf")
+    ],
+    *[
+        Entry(
+            f"empty-file{e}",
+            "scene file",
+            f"zero-byte {e} file",
+            _load_bytes(f"empty{e}", b""),
+            SceneError,
+            r"no triangles|truncated GLB: 0 bytes|corrupt glTF|could not read",
+        )
+        for e in (".obj", ".ply", ".glb", ".gltf")
+    ],
+    Entry(
+        "gltf-missing-buffer",
+        "scene file",
+        ".gltf whose external .bin buffer is missing",
+        _load_bytes("ext.gltf", lambda: _gltf_with_uri("missing.bin")),
+        SceneError,
+        r"could not read the glTF file \(FileNotFoundError: .*missing\.bin",
+    ),
+    Entry(
+        "obj-index-out-of-range",
+        "scene file",
+        "OBJ face referencing a vertex that does not exist",
+        _load_bytes("idx.obj", tet_obj() + "f 1 2 9\n"),
+        SceneError,
+        r"could not read the OBJ file",
+    ),
+    Entry(
+        "directory-as-scene",
+        "scene file",
+        "a directory named like a scene file",
+        lambda c: (c.tmp / "d.obj").mkdir() or _load("d.obj")(c),
+        SceneError,
+        "not found",
+    ),
+    # --- scene data -------------------------------------------------------------------------------
+    Entry(
+        "coordinates-too-large",
+        "scene data",
+        "vertex coordinates beyond ±1e18 (float32 overflow)",
+        _load_bytes("huge.obj", tet_obj(TET_V * 1e30)),
+        SceneError,
+        r"coordinates reach 1e\+30, beyond ±1e\+18: squared distances would overflow float32",
+    ),
+    Entry(
+        "extent-too-small",
+        "scene data",
+        "scene extent below 1e-15 (float32 underflow)",
+        _load_bytes("tiny.obj", tet_obj(TET_V * 1e-30)),
+        SceneError,
+        r"extent 1e-30 is below 1e-15: squared distances would underflow float32",
+    ),
+    Entry(
+        "duplicate-triangles",
+        "scene data",
+        "the same triangle twice (same winding)",
+        _load_bytes("dup.obj", tet_obj() + "f 1 3 2\nf 3 2 1\n"),
+        None,
+        r"dropped 2 duplicate triangles of 6",
+    ),
+    Entry(
+        "inverted-normals",
+        "scene data",
+        "a Cornell box modelled inside-out (every face points away from the probes)",
+        lambda c: bake(c.cornell(inverted=True), [INSIDE_OUT_PROBE]),
+        None,
+        r"1 of 1 probes are inside geometry \(most first hits are back faces\)",
+    ),
+    Entry(
+        "no-light-bake",
+        "scene data",
+        "path-traced bake of a scene with no emitter, sun or sky",
+        _bake_dark,
+        SceneError,
+        r"scene 'room' has no light \(no emissive material, sun or sky\)",
+    ),
+    Entry(
+        "no-light-render",
+        "scene data",
+        "render of a scene with no emitter, sun or sky",
+        lambda c: __import__("probeplace.render", fromlist=["render"]).render(
+            c.room(),
+            __import__("probeplace.scene", fromlist=["x"]).make_camera([2, 1.5, 4.5], [2, 1.5, 0], 60.0, "f"),
+            __import__("probeplace.render", fromlist=["x"]).RenderConfig(
+                width=2, height=2, spp=1, progress=False
+            ),
+            key=0,
+        ),
+        SceneError,
+        "no light",
+    ),
+    # --- memory -----------------------------------------------------------------------------------
+    Entry(
+        "bake-resolution-too-large",
+        "memory",
+        "bake at radiance_res=65536 (2³² texels per probe)",
+        lambda c: bake(c.cornell(), cornell_probes(c.cornell())[:1], radiance_res=65536),
+        ResourceError,
+        r"bake of 1 probes at radiance_res=65536.* needs ~\d+ bytes \(\d+\.\d GiB\), over the limit",
+    ),
+    Entry(
+        "sdf-lattice-too-large",
+        "memory",
+        "SDF with voxel_size 1e-4 in a 5 m room",
+        _sdf_tiny_voxels,
+        ResourceError,
+        r"lattice .*GiB to build, limit \d+ GiB\); use a larger voxel_size",
+    ),
+    Entry(
+        "render-image-too-large",
+        "memory",
+        "render of a 10⁶×10⁶ image",
+        _render_huge,
+        ResourceError,
+        r"\d+ bytes",
+    ),
+    # --- probe sets -------------------------------------------------------------------------------
+    Entry(
+        "bake-empty",
+        "probes",
+        "bake of an empty probe set",
+        lambda c: bake(c.cornell(), np.zeros((0, 3))),
+        ConfigError,
+        "cannot bake an empty probe set",
+    ),
+    Entry(
+        "bake-inf",
+        "probes",
+        "bake with an infinite probe position",
+        lambda c: bake(c.cornell(), [[1.0, 1.0, np.inf]]),
+        ConfigError,
+        r"probe positions must be finite; 1 are not",
+    ),
+    Entry(
+        "bake-duplicates",
+        "probes",
+        "bake with two probes at the same position",
+        lambda c: bake(c.cornell(), cornell_probes(c.cornell())[4:6]),
+        None,
+        r"bake: 1 of 2 probe positions are duplicates",
+    ),
+    Entry(
+        "bake-outside",
+        "probes",
+        "bake with a probe outside the scene bounds",
+        lambda c: bake(c.cornell(), [cornell_probes(c.cornell())[0], [-100.0, 200.0, 200.0]]),
+        None,
+        r"bake: 1 of 2 probes lie outside the scene bounds",
+    ),
+    Entry(
+        "save-nan",
+        "probes",
+        "save_probe_set with a NaN position",
+        _save_nan,
+        ProbeplaceError,
+        "cannot save a probe set with NaN or infinite positions",
+    ),
+    Entry(
+        "load-nan",
+        "probes",
+        "ProbeSet file with NaN in positions",
+        _probe_json(f'{{"format": "{_PS}", "positions": [[1, 2, NaN]], "active": [true]}}'),
+        ProbeplaceError,
+        "non-finite probe positions",
+    ),
+    Entry(
+        "load-count-mismatch",
+        "probes",
+        "ProbeSet file with more active flags than positions",
+        _probe_json({"format": _PS, "positions": [[1, 2, 3]], "active": [True, False]}),
+        ProbeplaceError,
+        r"1 positions but 2 active flags",
+    ),
+    Entry(
+        "load-bad-shape",
+        "probes",
+        "ProbeSet file whose positions are not triples",
+        _probe_json({"format": _PS, "positions": [[1, 2]]}),
+        ProbeplaceError,
+        r"bad positions/active arrays",
+    ),
+    Entry(
+        "load-wrong-format",
+        "probes",
+        "JSON file that is not a ProbeSet file",
+        _probe_json({"format": "something/else", "positions": []}),
+        ProbeplaceError,
+        "not a probe set file",
+    ),
+    Entry(
+        "load-not-json",
+        "probes",
+        "ProbeSet file that is not JSON",
+        _probe_json("positions: [1, 2, 3]"),
+        ProbeplaceError,
+        "not valid JSON",
+    ),
+    Entry(
+        "load-missing",
+        "probes",
+        "ProbeSet file that does not exist",
+        lambda c: __import__("probeplace._core", fromlist=["x"]).load_probe_set(c.tmp / "none.json"),
+        ProbeplaceError,
+        "probe set file not found",
+    ),
+    Entry(
+        "tracer-nan",
+        "probes",
+        "make_tracer on probes with a NaN position",
+        _tracer_with(_with(np.nan)),
+        ConfigError,
+        r"probe positions must be finite; 1 are not",
+    ),
+    Entry(
+        "tracer-bad-bounds",
+        "probes",
+        "make_tracer with inverted bounds",
+        _tracer_with(lambda p: p, bounds=[[556.0, 548.8, 559.2], [0.0, 0.0, 0.0]]),
+        ConfigError,
+        r"bounds must be finite \(min, max\) corners",
+    ),
+    Entry(
+        "tracer-duplicates",
+        "probes",
+        "make_tracer on probes with duplicate positions",
+        _tracer_with(lambda p: np.concatenate([p[1:2], p[1:]])),
+        None,
+        r"make_tracer: 2 of 8 probe positions are duplicates",
+    ),
+    Entry(
+        "tracer-outside",
+        "probes",
+        "make_tracer on probes outside the bounds",
+        _tracer_with(_with([-100.0, 200.0, 200.0])),
+        None,
+        r"make_tracer: 1 of 8 probes lie outside",
+    ),
+    # --- configuration ----------------------------------------------------------------------------
+    Entry(
+        "render-width-zero",
+        "config",
+        "RenderConfig(width=0)",
+        _cfg("probeplace.render.RenderConfig", width=0, height=4, spp=1),
+        ConfigError,
+        r"RenderConfig.width must be a positive int, got 0",
+    ),
+    Entry(
+        "render-width-float",
+        "config",
+        "RenderConfig(width=4.5)",
+        _cfg("probeplace.render.RenderConfig", width=4.5, height=4, spp=1),
+        ConfigError,
+        r"RenderConfig.width must be a positive int, got 4.5",
+        wrong_type=True,
+    ),
+    Entry(
+        "render-specular-nan",
+        "config",
+        "RenderConfig(specular=nan)",
+        _cfg("probeplace.render.RenderConfig", width=4, height=4, spp=1, specular=float("nan")),
+        ConfigError,
+        r"RenderConfig.specular must be in \[0, 1\], got nan",
+    ),
+    Entry(
+        "bake-res-not-pow2",
+        "config",
+        "BakeConfig(radiance_res=24)",
+        _cfg("probeplace.probes.BakeConfig", radiance_res=24),
+        ConfigError,
+        r"BakeConfig.radiance_res must be a power of two ≥ 2, got 24",
+    ),
+    Entry(
+        "bake-nsub-zero",
+        "config",
+        "BakeConfig(n_sub=0)",
+        _cfg("probeplace.probes.BakeConfig", n_sub=0),
+        ConfigError,
+        r"BakeConfig.n_sub must be a positive int, got 0",
+    ),
+    Entry(
+        "bake-quality-nan",
+        "config",
+        "BakeConfig(quality=nan)",
+        _cfg("probeplace.probes.BakeConfig", quality=float("nan")),
+        ConfigError,
+        r"BakeConfig.quality must be positive, got nan",
+    ),
+    Entry(
+        "trace-hierarchy",
+        "config",
+        "TraceConfig(hierarchy='octree')",
+        _cfg("probeplace.probes.TraceConfig", hierarchy="octree"),
+        ConfigError,
+        r"TraceConfig.hierarchy must be one of \('hiz', 'two_level', 'flat'\), got 'octree'",
+    ),
+    Entry(
+        "trace-max-probes-str",
+        "config",
+        "TraceConfig(max_probes='8')",
+        _cfg("probeplace.probes.TraceConfig", max_probes="8"),
+        ConfigError,
+        r"TraceConfig.max_probes must be an int, got '8'",
+        wrong_type=True,
+    ),
+    Entry(
+        "trace-margin-inf",
+        "config",
+        "TraceConfig(bounds_margin=inf)",
+        _cfg("probeplace.probes.TraceConfig", bounds_margin=float("inf")),
+        ConfigError,
+        r"TraceConfig.bounds_margin must be a finite number, got inf",
+    ),
+    Entry(
+        "fitness-w1-nan",
+        "config",
+        "FitnessConfig(w1=nan)",
+        _cfg("probeplace.placement.FitnessConfig", w1=float("nan")),
+        ConfigError,
+        r"FitnessConfig.w1 must be a non-negative number, got nan",
+    ),
+    Entry(
+        "fitness-clearance-zero",
+        "config",
+        "FitnessConfig(clearance_voxels=0)",
+        _cfg("probeplace.placement.FitnessConfig", clearance_voxels=0.0),
+        ConfigError,
+        r"FitnessConfig.clearance_voxels must be a positive number, got 0.0",
+    ),
+    Entry(
+        "fitness-map-res-zero",
+        "config",
+        "FitnessConfig(map_res=0)",
+        _cfg("probeplace.placement.FitnessConfig", map_res=0),
+        ConfigError,
+        r"map_res ≥ 1",
+    ),
+    Entry(
+        "demo-unknown-key",
+        "config",
+        "demo config with an unknown top-level key",
+        lambda c: __import__("probeplace.demo", fromlist=["x"])._merge_config({"bakee": {}}),
+        ConfigError,
+        r"demo config: unknown key 'bakee'; known: \[",
+    ),
+    Entry(
+        "demo-unknown-nested-key",
+        "config",
+        "demo config with an unknown key inside a section",
+        lambda c: __import__("probeplace.demo", fromlist=["x"])._merge_config(
+            {"bake": {"spp": 4, "sppp": 8}}
+        ),
+        ConfigError,
+        r"demo config: unknown keys \['sppp'\] in 'bake'",
+    ),
+    Entry(
+        "demo-bad-yaml",
+        "config",
+        "demo YAML file that does not parse",
+        lambda c: __import__("probeplace.demo", fromlist=["x"]).load_demo_config(
+            c.write("d.yaml", "bake: [1, 2\n")
+        ),
+        ConfigError,
+        r"d\.yaml: not valid YAML",
+    ),
+    Entry(
+        "place-method",
+        "config",
+        "place(method='voronoi')",
+        _place(method="voronoi"),
+        ConfigError,
+        r"method must be one of .*, got 'voronoi'",
+    ),
+    Entry(
+        "place-budget",
+        "config",
+        "place(budget=0)",
+        _place(budget=0),
+        ConfigError,
+        r"budget must be 'auto' or a positive integer, got 0",
+    ),
+    Entry(
+        "place-refiner",
+        "config",
+        "place(refiner='annealing')",
+        _place(refiner="annealing"),
+        ConfigError,
+        r"refiner must be one of .* or None, got 'annealing'",
+    ),
+]
+
+assert len({e.id for e in CATALOGUE}) == len(CATALOGUE), "catalogue ids must be unique"
