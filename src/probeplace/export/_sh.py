@@ -1,15 +1,5 @@
-"""Spherical harmonics L2 (9 coefficients per colour) in the three.js convention, in NumPy.
-
-Convention (the one three.js ``SphericalHarmonics3`` / ``LightProbe`` and Three.V8 use, so a
-coefficient array can be handed to them as is):
-
-* real SH basis with the usual normalisation (Ramamoorthi & Hanrahan 2001, "An Efficient
-  Representation for Irradiance Environment Maps", Eq. 3), evaluated on the world-frame unit
-  vector (x, y, z) (right-handed, +Y up), in the order
-  ``Y00, Y1-1 (y), Y10 (z), Y11 (x), Y2-2 (xy), Y2-1 (yz), Y20 (3z²-1), Y21 (xz), Y22 (x²-y²)``;
-* the coefficients c_lm are those of the incident **radiance** L(ω) = Σ c_lm Y_lm(ω);
-* irradiance at a receiver normal n is E(n) = Σ Â_l c_lm Y_lm(n) with Â₀ = π, Â₁ = 2π/3, Â₂ = π/4
-  (R&H 2001 Eq. 8-9), which is exactly three.js' ``shGetIrradianceAt`` (0.886227 = π·0.282095, …).
+"""Spherical harmonics L2 projection of baked octahedral radiance maps, in NumPy. The basis and its
+convention (three.js ``SphericalHarmonics3``; Ramamoorthi & Hanrahan 2001) are in ``_core/_sh.py``.
 """
 
 from __future__ import annotations

@@ -178,20 +178,26 @@ def coverage_of(scene: Scene, pos: np.ndarray, *, seed: int = 0) -> float:
     return binary_coverage(problem, binary_visibility(problem, pos))
 
 
+def _refining_grid_dims(lo: np.ndarray, hi: np.ndarray):
+    """Grid dimensions over the box [lo, hi], coarsest first: the spacing shrinks by 10% per step and
+    dimensions already produced are skipped. Endless; the caller stops."""
+    spacing = float(np.max(hi - lo))
+    seen: set[tuple] = set()
+    while True:
+        dims = grid_dims(lo, hi, spacing)
+        spacing *= 0.9
+        if dims not in seen:
+            seen.add(dims)
+            yield dims
+
+
 def smallest_full_grid(problem, *, max_probes: int = 4096, target: float = 1.0) -> tuple[int, float, tuple]:
     """Smallest uniform grid (by active probe count) reaching ``target`` coverage; spacing shrinks by 10%.
 
     Returns (probe count, coverage, dims); count −1 if none up to ``max_probes``.
     """
     lo, hi = np.asarray(problem.lo), np.asarray(problem.hi)
-    spacing = float(np.max(hi - lo))
-    seen = set()
-    while True:
-        dims = grid_dims(lo, hi, spacing)
-        spacing *= 0.9
-        if dims in seen:
-            continue
-        seen.add(dims)
+    for dims in _refining_grid_dims(lo, hi):
         pos = uniform_grid(lo, hi, dims)
         pos = pos[probe_clearance(problem, pos) > 0]
         if len(pos) > max_probes:
@@ -264,14 +270,8 @@ def _grid_dims_for_budget(scene: Scene, budget: int, inside: str) -> tuple:
     from ._uniform import scene_box, uniform_probe_grid
 
     lo, hi = scene_box(scene)
-    spacing = float(np.max(hi - lo))
-    best, seen = (1, 1, 1), set()
-    while True:
-        dims = grid_dims(lo, hi, spacing)
-        spacing *= 0.9
-        if dims in seen:
-            continue
-        seen.add(dims)
+    best = (1, 1, 1)
+    for dims in _refining_grid_dims(lo, hi):
         if int(np.prod(dims)) > 64 * budget + 64:
             return best
         n = uniform_probe_grid(scene, dims=dims, inside=inside).probes.n_active
