@@ -21,6 +21,20 @@ def test_grid_method_matches_uniform_grid(cornell):
     assert meta["n_disabled"] == r.n_disabled and "total_s" in meta["timings"]
 
 
+def test_grid_method_offset_shifts_the_lattice(cornell):
+    """An ``offset`` of (0.25, 0, 0.5) cells moves every probe by exactly that many cell widths (keep all)."""
+    opts = {"dims": (3, 3, 3), "inside": "keep"}
+    base, _ = place(cornell, method="grid", options=opts)
+    moved, meta = place(cornell, method="grid", options={**opts, "offset": [0.25, 0.0, 0.5]})
+    lo, hi = (np.asarray(b, np.float64) for b in np.asarray(cornell.bounds))
+    cell = (hi - lo) / 3
+    shift = np.asarray(moved.pos_world, np.float64) - np.asarray(base.pos_world, np.float64)
+    np.testing.assert_allclose(
+        shift, np.broadcast_to(cell * [0.25, 0.0, 0.5], shift.shape), rtol=1e-5, atol=1e-3
+    )
+    assert meta["config"]["offset"] == [0.25, 0.0, 0.5]
+
+
 @pytest.mark.slow  # several SDF-classified grids + coverage: ~15 s
 def test_grid_budget_is_the_finest_grid_within_it(cornell):
     probes, meta = place(cornell, method="grid", budget=40)

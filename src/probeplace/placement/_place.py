@@ -244,7 +244,7 @@ def save_top_view(scene: Scene, pos: np.ndarray | jax.Array, path: str | Path, *
 
 # --- baselines (issue 6): uniform grid, Yang 2023 LOD grid and Vardis 2021 as ``place`` methods ---
 BASELINE_OPTIONS = {
-    "grid": {"dims": None, "inside": "disable", "jitter": 0.0},
+    "grid": {"dims": None, "inside": "disable", "jitter": 0.0, "offset": [0.0, 0.0, 0.0]},
     "lod-grid": {"base_divisions": None, "levels": 3},
     "vardis": {
         "dense": "grid",
@@ -283,7 +283,8 @@ def _grid_dims_for_budget(scene: Scene, budget: int, inside: str) -> tuple:
 def _place_baseline(scene, method, budget, refiner, objective, seed, n_opt_samples, options) -> tuple:
     """The baseline methods of :func:`place`; ``options`` (defaults :data:`BASELINE_OPTIONS`):
 
-    * ``grid``: ``dims`` (else from the budget), ``inside`` (keep / disable / relocate), ``jitter``;
+    * ``grid``: ``dims`` (else from the budget), ``inside`` (keep / disable / relocate), ``jitter``,
+      ``offset`` (lattice shift in fractions of a cell per axis);
     * ``lod-grid``: ``base_divisions`` (default: about 4 cells on the longest side, cubic cells), ``levels``;
     * ``vardis``: ``dense`` (``grid`` / ``poisson``), ``dense_probes`` (about this many), ``inside``,
       ``n_eval`` and ``eval_points`` (``surface`` / ``grid``), ``n_dirs`` / ``spp`` / ``max_depth`` of the
@@ -316,7 +317,11 @@ def _place_baseline(scene, method, budget, refiner, objective, seed, n_opt_sampl
             dims = _grid_dims_for_budget(scene, int(budget), opts["inside"])
         jitter = float(opts["jitter"])
         key = k_g if jitter else None
-        r = uniform_probe_grid(scene, dims=dims, inside=opts["inside"], jitter=jitter, key=key)
+        # ``offset`` (fraction of a cell) moves the lattice against the geometry: the alignment study of
+        # the stability preset (translating the whole scene would move the box-anchored lattice with it).
+        r = uniform_probe_grid(
+            scene, dims=dims, inside=opts["inside"], jitter=jitter, key=key, offset=opts["offset"]
+        )
         pos = np.asarray(r.probes.pos_world)[np.asarray(r.probes.active)]
         opts["dims"] = list(r.dims)
         extra = {"n_inside": r.n_inside, "n_disabled": r.n_disabled, "n_relocated": r.n_relocated}
