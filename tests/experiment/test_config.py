@@ -111,6 +111,10 @@ def test_run_name_is_unique_per_swept_coordinate():
     assert len(names) == 16
     moved = to_config({"scene": {"translate_frac": [0.01, 0.0, 0.0], "rotate_deg": 2.5}})
     assert run_name(moved) != run_name(to_config({}))
+    grid = {"method": "grid", "budget": 8}
+    offsets = [[0.0, 0.0, 0.0], [0.25, 0.0, 0.5]]
+    swept = {run_name(to_config({"placer": {**grid, "options": {"offset": o}}})) for o in offsets}
+    assert len(swept) == 2 and run_name(to_config({"placer": grid})) not in swept
 
 
 def test_scene_offset_moves_the_scene_relative_to_the_grid():

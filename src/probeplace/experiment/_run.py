@@ -43,7 +43,8 @@ class RunResult:
 
 
 def run_name(cfg: ExperimentConfig) -> str:
-    """The run folder name: ``cfg.run`` or scene[~offset]__method[+refiner]__b<budget>__s<seed>."""
+    """The run folder name: ``cfg.run`` or
+    scene[~offset]__method[+refiner]__b<budget>__s<seed>[__o<placer options>]."""
     if cfg.run:
         return cfg.run
     scene = Path(cfg.scene.name).stem
@@ -51,7 +52,17 @@ def run_name(cfg: ExperimentConfig) -> str:
     if any(float(x) != 0.0 for x in t) or float(cfg.scene.rotate_deg) != 0.0:
         scene += "~t" + ",".join(f"{float(x):g}" for x in t) + f"~r{float(cfg.scene.rotate_deg):g}"
     method = cfg.placer.method + ("" if cfg.refiner.name == "none" else f"+{cfg.refiner.name}")
-    return f"{scene}__{method}__b{cfg.placer.budget}__s{cfg.seed}"
+    name = f"{scene}__{method}__b{cfg.placer.budget}__s{cfg.seed}"
+    if cfg.placer.options:  # e.g. a swept grid offset: each value gets its own run folder
+        name += "__o" + ",".join(f"{k}={_option_text(v)}" for k, v in sorted(cfg.placer.options.items()))
+    return name
+
+
+def _option_text(value) -> str:
+    """A placer option as folder-name text: sequences joined by ``_``, numbers in ``%g``."""
+    if not isinstance(value, str) and hasattr(value, "__iter__"):  # list, tuple, OmegaConf ListConfig
+        return "_".join(_option_text(v) for v in value)
+    return f"{value:g}" if isinstance(value, float) else str(value)
 
 
 def run_dir(cfg: ExperimentConfig) -> Path:
