@@ -39,3 +39,18 @@ def test_temple_auto_beats_uniform_grid():
     n_grid, cov_grid, _dims = smallest_full_grid(problem, max_probes=2000)
     assert n_grid == -1 or cov_grid >= 1.0 - 1e-9
     assert n_grid == -1 or len(res.pos) < n_grid
+
+
+def test_auto_budget_reports_the_refiner_status(small):
+    """A solver stopped by ``max_steps`` is reported as such (the stability study's "not converged"), and
+    ``place`` turns the status into ``refine_converged``."""
+    from probeplace.placement._optimistix import OptimistixRefiner
+    from probeplace.placement._place import _refine_report
+
+    res = auto_budget(small, key=jax.random.key(0), refiner=OptimistixRefiner(solver="bfgs", max_steps=1))
+    assert res.refine_status == "reached max_steps"
+    assert isinstance(res.refined, bool)
+    assert auto_budget(small, key=jax.random.key(0)).refine_status is None
+    assert _refine_report(res.refine_status, res.refined)["refine_converged"] is False
+    assert _refine_report("ok", True) == {"refine_status": "ok", "refine_converged": True, "refined": True}
+    assert _refine_report(None, False) == {"refined": False}

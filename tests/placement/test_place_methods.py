@@ -35,6 +35,51 @@ def test_grid_method_offset_shifts_the_lattice(cornell):
     assert meta["config"]["offset"] == [0.25, 0.0, 0.5]
 
 
+def _translated(scene, t):
+    from probeplace.scene import transform_scene
+
+    return transform_scene(scene, rotation=np.eye(3), translation=t)
+
+
+def test_shift_keeps_the_grid_fixed_in_the_world(cornell):
+    """The box-anchored grid moves with a translated scene; ``shift = −t`` keeps it where it was (exactly
+    the untranslated lattice), i.e. the scene then moves relative to the grid (the stability study)."""
+    lo, hi = scene_box(cornell)
+    t = np.array([0.07, 0.0, -0.05]) * (hi - lo)
+    opts = {"dims": (3, 3, 3), "inside": "keep"}
+    base = np.asarray(place(cornell, method="grid", options=opts)[0].pos_world, np.float64)
+    moved = _translated(cornell, t)
+    follow = np.asarray(place(moved, method="grid", options=opts)[0].pos_world, np.float64)
+    fixed, meta = place(moved, method="grid", options={**opts, "shift": (-t).tolist()})
+    np.testing.assert_allclose(follow, base + t, atol=1e-4)
+    np.testing.assert_allclose(np.asarray(fixed.pos_world, np.float64), base, atol=1e-4)
+    assert meta["config"]["shift"] == pytest.approx((-t).tolist())
+    with pytest.raises(ConfigError, match="shift"):
+        place(cornell, method="grid", options={**opts, "shift": [float("nan"), 0.0, 0.0]})
+
+
+def test_shift_keeps_the_lod_grid_on_its_world_lattice(cornell):
+    """Every LOD-grid probe is a cell centre of the box at some level, so its coordinates are half-integer
+    multiples of the finest cell from the box corner. With ``shift = −t`` in a scene translated by t they stay
+    on the *untranslated* box's lattice; without it they follow the scene off that lattice."""
+    lo, hi = scene_box(cornell)
+    t = np.array([0.03, 0.0, 0.045]) * (hi - lo)
+    base = (2, 2, 2)
+    fine = (hi - lo) / (np.asarray(base) * 2**2)
+
+    def on_lattice(pos):
+        u = 2 * (np.asarray(pos, np.float64) - lo) / fine  # integers on the untranslated lattice
+        return np.abs(u - np.round(u)).max() < 1e-3
+
+    moved = _translated(cornell, t)
+    opts = {"base_divisions": base, "levels": 2}
+    fixed, meta = place(moved, method="lod-grid", options={**opts, "shift": (-t).tolist()})
+    follow, _ = place(moved, method="lod-grid", options=opts)
+    assert meta["config"]["levels"] == 2 and fixed.pos_world.shape[0] > 8
+    assert on_lattice(fixed.pos_world)
+    assert not on_lattice(follow.pos_world)
+
+
 @pytest.mark.slow  # several SDF-classified grids + coverage: ~15 s
 def test_grid_budget_is_the_finest_grid_within_it(cornell):
     probes, meta = place(cornell, method="grid", budget=40)
@@ -128,3 +173,4 @@ def test_baseline_refinement_never_lowers_coverage(cornell):
     )
     assert isinstance(meta["refined"], bool) and meta["coverage"] >= base["coverage"]
     assert probes.capacity == base["n_probes"] and "refine_s" in meta["timings"]
+    assert meta["refine_converged"] == (meta["refine_status"] == "ok") and "refine_status" not in base

@@ -70,21 +70,37 @@ def run_dir(cfg: ExperimentConfig) -> Path:
     return Path(cfg.results_dir) / cfg.name / run_name(cfg)
 
 
-def load_experiment_scene(scene_cfg) -> Any:
-    """The configured scene, moved by ``translate_frac`` × extent and rotated about +Y through its centre."""
+def load_experiment_scene(scene_cfg, *, with_translation: bool = False) -> Any:
+    """The configured scene, moved by ``translate_frac`` × extent and rotated about +Y through its centre;
+    with ``with_translation``, also the translation (scene units) as a float64 3-vector."""
     from ..scene import axis_angle_rotation, load_scene, transform_scene
 
     scene = load_scene(scene_cfg.name)
     t = np.asarray(scene_cfg.translate_frac, np.float64)
     deg = float(scene_cfg.rotate_deg)
-    if not t.any() and deg == 0.0:
-        return scene
     lo, hi = (np.asarray(b, np.float64) for b in np.asarray(scene.bounds))
+    if not t.any() and deg == 0.0:
+        return (scene, np.zeros(3)) if with_translation else scene
     centre = 0.5 * (lo + hi)
     rot = np.asarray(axis_angle_rotation([0.0, 1.0, 0.0], np.deg2rad(deg)), np.float64)
     # x ↦ R (x − c) + c + t·extent
     translation = centre - rot @ centre + t * (hi - lo)
-    return transform_scene(scene, rotation=rot, translation=translation)
+    moved = transform_scene(scene, rotation=rot, translation=translation)
+    return (moved, t * (hi - lo)) if with_translation else moved
+
+
+def _placer_options(cfg: ExperimentConfig, translation: np.ndarray) -> dict:
+    """``placer.options``, plus, for the lattice methods (grid, lod-grid, Vardis's dense grid) of a translated
+    scene, ``shift = −translation``: those lattices are anchored to the scene's bounding box and would move
+    with the scene, so the shift keeps them where they were in the world and the scene really moves
+    *relative to the grid* (the stability study). The skeleton methods' SDF lattice moves with the scene."""
+    from ..placement import BASELINE_METHODS
+
+    opts = dict(cfg.placer.options or {})
+    if cfg.placer.method in BASELINE_METHODS and np.any(translation):
+        base = np.broadcast_to(np.asarray(opts.get("shift", (0.0, 0.0, 0.0)), np.float64), (3,))
+        opts["shift"] = (base - translation).tolist()
+    return opts
 
 
 def _tree_nbytes(tree) -> int:
@@ -202,7 +218,7 @@ def _execute(cfg: ExperimentConfig, partial: Path, final: Path) -> dict:
     bar = tqdm(total=len(stages), desc=final.name, unit="stage", disable=not cfg.progress, leave=False)
 
     t0 = time.perf_counter()
-    scene = load_experiment_scene(cfg.scene)
+    scene, translation = load_experiment_scene(cfg.scene, with_translation=True)
     timings["scene_s"] = time.perf_counter() - t0
     views = [c.name for c in scene.views]
     if cfg.eval.enabled and cfg.eval.view not in views:  # refuse before placing and baking
@@ -222,7 +238,7 @@ def _execute(cfg: ExperimentConfig, partial: Path, final: Path) -> dict:
         seed=cfg.seed,
         target=cfg.placer.target,
         n_opt_samples=cfg.placer.n_opt_samples,
-        **({"options": dict(cfg.placer.options)} if cfg.placer.options else {}),
+        **({"options": opts} if (opts := _placer_options(cfg, translation)) else {}),
     )
     timings["place_s"] = time.perf_counter() - t0
     bar.update()
@@ -359,14 +375,9 @@ def _flat(d: dict, prefix: str = "") -> dict:
 
 
 def _converged(meta: dict) -> bool | None:
-    """Whether the refiner converged, when placement reports it (``None``: not reported / no refiner)."""
-    for k in ("refine_converged", "converged"):
-        if k in meta:
-            return bool(meta[k])
-    ref = meta.get("refine")
-    if isinstance(ref, dict) and "converged" in ref:
-        return bool(ref["converged"])
-    return None
+    """Whether the refiner converged (``placement.place``'s ``refine_converged``; ``None``: no refiner)."""
+    c = meta.get("refine_converged")
+    return None if c is None else bool(c)
 
 
 def unresolved_share(ev: dict) -> float | None:

@@ -17,6 +17,7 @@ from ._fitness import wang_fitness_binary as wang_fitness_binary
 from ._fitness import witness_positions as witness_positions
 from ._grid import grid_dims as grid_dims
 from ._grid import uniform_grid as uniform_grid
+from ._place import BASELINE_METHODS as BASELINE_METHODS
 from ._place import METHODS as METHODS
 from ._place import place as place
 from ._place import save_top_view as save_top_view

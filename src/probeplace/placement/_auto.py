@@ -59,6 +59,9 @@ class AutoResult(eqx.Module):
         n_candidates: candidates considered (seeds + gap candidates).
         reached: whether the target was met.
         timings: seconds per phase.
+        refine_status: the refiner's status message (``"ok"``, ``"reached max_steps"``, ``"objective
+            became non-finite"``); ``None`` without a refiner.
+        refined: whether the refined positions were kept (binary coverage did not drop).
     """
 
     pos: np.ndarray
@@ -67,6 +70,8 @@ class AutoResult(eqx.Module):
     n_candidates: int
     reached: bool
     timings: dict
+    refine_status: str | None = None
+    refined: bool = False
 
 
 def _covered_area(vis_rows: np.ndarray, a: np.ndarray) -> float:
@@ -325,14 +330,16 @@ def auto_budget(
         curve.append((len(curve) + 1, float(a[acc].sum())))
     cov = _coverage_of(rows, a)
     # Refinement between adding and removing: keep it only if the binary coverage does not drop.
+    refine_status, refined = None, False
     if refiner is not None and len(pos):
         t1 = time.perf_counter()
         res = refiner.refine(refine_problem or problem, jnp.asarray(pos), key=key)
+        refine_status = res.status_message()
         new_pos = np.asarray(res.pos, np.float32)
         new_rows = vis_of(new_pos, np.arange(len(cols)))
         new_cov = _coverage_of(new_rows, a)
         if new_cov >= cov and np.all(probe_clearance(problem, new_pos) >= float(problem.clearance)):
-            pos, rows, cov = new_pos, new_rows, new_cov
+            pos, rows, cov, refined = new_pos, new_rows, new_cov, True
         timings["refine_s"] = time.perf_counter() - t1
     # Removal: drop probes (least unique area first) while the coverage stays at the target.
     t1 = time.perf_counter()
@@ -348,6 +355,8 @@ def auto_budget(
         n_candidates=len(cand),
         reached=bool((a * rows.any(axis=0)).sum() >= target_area) if len(rows) else False,
         timings=timings,
+        refine_status=refine_status,
+        refined=refined,
     )
 
 

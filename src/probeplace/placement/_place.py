@@ -149,11 +149,21 @@ def place(
         "n_candidates": res.n_candidates,
         "coverage": res.coverage,
         "target_reached": res.reached,
+        **_refine_report(res.refine_status, res.refined),
         "coverage_curve": res.curve,
         "min_probe_clearance": float(clear.min()) if len(clear) else None,
         "timings": timings,
     }
     return probes, meta
+
+
+def _refine_report(status: str | None, kept: bool) -> dict:
+    """Metadata of the refinement step: its status, whether it converged (the solver stopped on its
+    tolerance, not on ``max_steps`` or a non-finite objective; the fixed-sweep Gibbs and ascent refiners
+    count as converged when they finish finite) and whether its positions were kept."""
+    if status is None:
+        return {"refined": False}
+    return {"refine_status": status, "refine_converged": status == "ok", "refined": bool(kept)}
 
 
 def _search_caster(scene: Scene, caster: str | None):
@@ -244,9 +254,16 @@ def save_top_view(scene: Scene, pos: np.ndarray | jax.Array, path: str | Path, *
 
 # --- baselines (issue 6): uniform grid, Yang 2023 LOD grid and Vardis 2021 as ``place`` methods ---
 BASELINE_OPTIONS = {
-    "grid": {"dims": None, "inside": "disable", "jitter": 0.0, "offset": [0.0, 0.0, 0.0]},
-    "lod-grid": {"base_divisions": None, "levels": 3},
+    "grid": {
+        "dims": None,
+        "inside": "disable",
+        "jitter": 0.0,
+        "offset": [0.0, 0.0, 0.0],
+        "shift": [0.0, 0.0, 0.0],
+    },
+    "lod-grid": {"base_divisions": None, "levels": 3, "shift": [0.0, 0.0, 0.0]},
     "vardis": {
+        "shift": [0.0, 0.0, 0.0],
         "dense": "grid",
         "dense_probes": 512,
         "inside": "disable",
@@ -288,7 +305,11 @@ def _place_baseline(scene, method, budget, refiner, objective, seed, n_opt_sampl
     * ``lod-grid``: ``base_divisions`` (default: about 4 cells on the longest side, cubic cells), ``levels``;
     * ``vardis``: ``dense`` (``grid`` / ``poisson``), ``dense_probes`` (about this many), ``inside``,
       ``n_eval`` and ``eval_points`` (``surface`` / ``grid``), ``n_dirs`` / ``spp`` / ``max_depth`` of the
-      probe SH, ``error``, ``weights``, ``per_iteration``, ``lazy``, ``tolerance`` (budget ``"auto"``).
+      probe SH, ``error``, ``weights``, ``per_iteration``, ``lazy``, ``tolerance`` (budget ``"auto"``);
+    * all three: ``shift`` (3-vector, scene units) moves the lattice (the grid, the LOD grid's coverage box,
+      Vardis's dense grid) away from the scene's bounding box, where it is otherwise anchored. The stability
+      study moves the scene by t and the lattice by −t, which keeps the lattice where it was in the world:
+      a translation of the scene *relative to the grid* (moving both together changes nothing).
 
     A ``refiner`` then moves the survivors on the coverage ``objective`` (Vardis 2021 §4's "global
     optimiser as a last step"), kept only if binary coverage does not drop (``metadata["refined"]``).
@@ -302,6 +323,11 @@ def _place_baseline(scene, method, budget, refiner, objective, seed, n_opt_sampl
         known = sorted(BASELINE_OPTIONS[method])
         raise ConfigError(f"unknown {method} options {sorted(unknown)}; known: {known}")
     opts = {**BASELINE_OPTIONS[method], **options}
+    shift = np.broadcast_to(np.asarray(opts["shift"], np.float64), (3,))
+    if not np.all(np.isfinite(shift)):
+        raise ConfigError(
+            f"{method} option shift must be a finite 3-vector (scene units), got {opts['shift']}"
+        )
     t_all = time.perf_counter()
     timings: dict[str, float] = {}
     k_g, k_v, k_e, k_r = jax.random.split(jax.random.key(seed), 4)
@@ -317,11 +343,12 @@ def _place_baseline(scene, method, budget, refiner, objective, seed, n_opt_sampl
             dims = _grid_dims_for_budget(scene, int(budget), opts["inside"])
         jitter = float(opts["jitter"])
         key = k_g if jitter else None
-        # ``offset`` (fraction of a cell) moves the lattice against the geometry: the alignment study of
-        # the stability preset (translating the whole scene would move the box-anchored lattice with it).
-        r = uniform_probe_grid(
-            scene, dims=dims, inside=opts["inside"], jitter=jitter, key=key, offset=opts["offset"]
-        )
+        # ``offset`` (fraction of a cell) and ``shift`` (scene units) move the lattice against the geometry:
+        # the alignment study of the stability preset.
+        lo, hi = scene_box(scene)
+        cell = (hi - lo) / np.broadcast_to(np.asarray(dims, np.float64), (3,))
+        offset = np.asarray(opts["offset"], np.float64) + shift / cell
+        r = uniform_probe_grid(scene, dims=dims, inside=opts["inside"], jitter=jitter, key=key, offset=offset)
         pos = np.asarray(r.probes.pos_world)[np.asarray(r.probes.active)]
         opts["dims"] = list(r.dims)
         extra = {"n_inside": r.n_inside, "n_disabled": r.n_disabled, "n_relocated": r.n_relocated}
@@ -333,8 +360,11 @@ def _place_baseline(scene, method, budget, refiner, objective, seed, n_opt_sampl
         opts["base_divisions"] = list(base)
         levels = list(range(int(opts["levels"]) + 1)) if budget != "auto" else [int(opts["levels"])]
         g = None
+        lo, hi = scene_box(scene)
         for lvl in levels[::-1]:
-            g = lod_probe_grid(scene, base_divisions=tuple(base), sub_division_level=lvl)
+            g = lod_probe_grid(
+                scene, base_divisions=tuple(base), sub_division_level=lvl, bounds=(lo + shift, hi + shift)
+            )
             if budget == "auto" or g.probe_count <= int(budget):
                 break
         if budget != "auto" and g.probe_count > int(budget):
@@ -346,7 +376,7 @@ def _place_baseline(scene, method, budget, refiner, objective, seed, n_opt_sampl
         lo, hi = scene_box(scene)
         spacing = float(np.prod(hi - lo) / int(opts["dense_probes"])) ** (1 / 3)
         if opts["dense"] == "grid":
-            r = uniform_probe_grid(scene, spacing=spacing, inside=opts["inside"])
+            r = uniform_probe_grid(scene, spacing=spacing, inside=opts["inside"], offset=shift / spacing)
             dense = np.asarray(r.probes.pos_world)[np.asarray(r.probes.active)]
         elif opts["dense"] == "poisson":
             dense = poisson_disk_probes(scene, 0.9 * spacing, key=k_g)
@@ -388,11 +418,12 @@ def _place_baseline(scene, method, budget, refiner, objective, seed, n_opt_sampl
     cov_problem = make_problem(scene, key=jax.random.key(seed))
     coverage = binary_coverage(cov_problem, binary_visibility(cov_problem, pos))
     timings["coverage_s"] = time.perf_counter() - t0
-    refined = False
+    refined, refine_status = False, None
     if refiner is not None:
         t0 = time.perf_counter()
         opt_problem = make_problem(scene, key=k_r, n_samples=n_opt_samples, config=FitnessConfig(n_steps=16))
         out = get_refiner(refiner, objective=objective).refine(opt_problem, jnp.asarray(pos), key=k_r)
+        refine_status = out.status_message()
         new = np.asarray(out.pos, np.float32)
         new_cov = binary_coverage(cov_problem, binary_visibility(cov_problem, new))
         if np.all(np.isfinite(new)) and new_cov >= coverage:
@@ -404,7 +435,7 @@ def _place_baseline(scene, method, budget, refiner, objective, seed, n_opt_sampl
         "method": method,
         "budget": budget,
         "refiner": refiner,
-        "refined": refined,
+        **_refine_report(refine_status, refined),
         "objective": objective,
         "seed": seed,
         "config": opts,
