@@ -69,7 +69,7 @@ def place(
         raise ConfigError(f"budget must be 'auto' or a positive integer, got {budget!r}")
     if method in BASELINE_METHODS:
         return _place_baseline(
-            scene, method, budget, refiner, objective, seed, n_opt_samples, dict(options or {})
+            scene, method, budget, refiner, objective, seed, n_opt_samples, dict(options or {}), caster
         )
     if options:
         raise ConfigError(f"options apply to the methods {BASELINE_METHODS} only, got {sorted(options)}")
@@ -282,8 +282,9 @@ BASELINE_OPTIONS = {
 }
 
 
-def _grid_dims_for_budget(scene: Scene, budget: int, inside: str) -> tuple:
-    """Finest uniform grid (spacing shrinking by 10%) with at most ``budget`` active probes."""
+def _grid_dims_for_budget(scene: Scene, budget: int, inside: str, sdf) -> tuple:
+    """Finest uniform grid (spacing shrinking by 10%) with at most ``budget`` active probes; ``sdf`` (the
+    scene's, built once by the caller) classifies the probes inside geometry for every candidate."""
     from ._uniform import scene_box, uniform_probe_grid
 
     lo, hi = scene_box(scene)
@@ -291,13 +292,15 @@ def _grid_dims_for_budget(scene: Scene, budget: int, inside: str) -> tuple:
     for dims in _refining_grid_dims(lo, hi):
         if int(np.prod(dims)) > 64 * budget + 64:
             return best
-        n = uniform_probe_grid(scene, dims=dims, inside=inside).probes.n_active
+        n = uniform_probe_grid(scene, dims=dims, inside=inside, sdf=sdf).probes.n_active
         if n > budget:
             return best
         best = dims
 
 
-def _place_baseline(scene, method, budget, refiner, objective, seed, n_opt_samples, options) -> tuple:
+def _place_baseline(
+    scene, method, budget, refiner, objective, seed, n_opt_samples, options, caster="auto"
+) -> tuple:
     """The baseline methods of :func:`place`; ``options`` (defaults :data:`BASELINE_OPTIONS`):
 
     * ``grid``: ``dims`` (else from the budget), ``inside`` (keep / disable / relocate), ``jitter``,
@@ -313,6 +316,8 @@ def _place_baseline(scene, method, budget, refiner, objective, seed, n_opt_sampl
 
     A ``refiner`` then moves the survivors on the coverage ``objective`` (Vardis 2021 §4's "global
     optimiser as a last step"), kept only if binary coverage does not drop (``metadata["refined"]``).
+    Coverage is measured with the same binary visibility as the skeleton search (``caster``: Embree
+    occlusion rays when available), so the methods' coverages compare like for like.
     """
     from ._lod_grid import lod_probe_grid
     from ._uniform import scene_box, uniform_probe_grid
@@ -333,14 +338,17 @@ def _place_baseline(scene, method, budget, refiner, objective, seed, n_opt_sampl
     k_g, k_v, k_e, k_r = jax.random.split(jax.random.key(seed), 4)
     extra: dict = {}
     t0 = time.perf_counter()
+    sdf = build_sdf(scene)  # PERF: once, for every candidate grid's inside test and for the coverage problem
+    timings["sdf_s"] = time.perf_counter() - t0
+    t0 = time.perf_counter()
     if method == "grid":
         dims = opts["dims"]
         if dims is None and budget == "auto":
-            n, _, dims = smallest_full_grid(make_problem(scene, key=k_g))
+            n, _, dims = smallest_full_grid(make_problem(scene, key=k_g, grid=sdf))
             if n < 0:
                 raise ConfigError("no uniform grid up to 4096 probes reaches full coverage; give a budget")
         elif dims is None:
-            dims = _grid_dims_for_budget(scene, int(budget), opts["inside"])
+            dims = _grid_dims_for_budget(scene, int(budget), opts["inside"], sdf)
         jitter = float(opts["jitter"])
         key = k_g if jitter else None
         # ``offset`` (fraction of a cell) and ``shift`` (scene units) move the lattice against the geometry:
@@ -348,7 +356,9 @@ def _place_baseline(scene, method, budget, refiner, objective, seed, n_opt_sampl
         lo, hi = scene_box(scene)
         cell = (hi - lo) / np.broadcast_to(np.asarray(dims, np.float64), (3,))
         offset = np.asarray(opts["offset"], np.float64) + shift / cell
-        r = uniform_probe_grid(scene, dims=dims, inside=opts["inside"], jitter=jitter, key=key, offset=offset)
+        r = uniform_probe_grid(
+            scene, dims=dims, inside=opts["inside"], jitter=jitter, key=key, offset=offset, sdf=sdf
+        )
         pos = np.asarray(r.probes.pos_world)[np.asarray(r.probes.active)]
         opts["dims"] = list(r.dims)
         extra = {"n_inside": r.n_inside, "n_disabled": r.n_disabled, "n_relocated": r.n_relocated}
@@ -415,17 +425,24 @@ def _place_baseline(scene, method, budget, refiner, objective, seed, n_opt_sampl
     timings["build_s"] = time.perf_counter() - t0
     pos = np.asarray(pos, np.float32)
     t0 = time.perf_counter()
-    cov_problem = make_problem(scene, key=jax.random.key(seed))
-    coverage = binary_coverage(cov_problem, binary_visibility(cov_problem, pos))
+    cov_problem = make_problem(scene, key=jax.random.key(seed), grid=sdf)
+    vis_caster = _search_caster(scene, caster)
+
+    def coverage_of_pos(p: np.ndarray) -> float:
+        return binary_coverage(cov_problem, binary_visibility(cov_problem, p, caster=vis_caster))
+
+    coverage = coverage_of_pos(pos)
     timings["coverage_s"] = time.perf_counter() - t0
     refined, refine_status = False, None
     if refiner is not None:
         t0 = time.perf_counter()
-        opt_problem = make_problem(scene, key=k_r, n_samples=n_opt_samples, config=FitnessConfig(n_steps=16))
+        opt_problem = make_problem(
+            scene, key=k_r, grid=sdf, n_samples=n_opt_samples, config=FitnessConfig(n_steps=16)
+        )
         out = get_refiner(refiner, objective=objective).refine(opt_problem, jnp.asarray(pos), key=k_r)
         refine_status = out.status_message()
         new = np.asarray(out.pos, np.float32)
-        new_cov = binary_coverage(cov_problem, binary_visibility(cov_problem, new))
+        new_cov = coverage_of_pos(new)
         if np.all(np.isfinite(new)) and new_cov >= coverage:
             pos, coverage, refined = new, new_cov, True
         timings["refine_s"] = time.perf_counter() - t0
@@ -441,6 +458,7 @@ def _place_baseline(scene, method, budget, refiner, objective, seed, n_opt_sampl
         "config": opts,
         "n_probes": len(pos),
         "coverage": coverage,
+        "visibility": "sdf" if vis_caster is None else type(vis_caster).__name__,
         "timings": timings,
         **extra,
     }

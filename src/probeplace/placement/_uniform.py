@@ -104,6 +104,20 @@ def lattice(
     return (pos + off * step).astype(np.float32), d, step  # type: ignore[return-value]
 
 
+@jax.jit
+def _sdf_values_padded(sdf: SDFGrid, pos: jax.Array) -> jax.Array:
+    return jax.vmap(lambda p: sdf_value(sdf, p))(pos)
+
+
+def _sdf_values(sdf: SDFGrid, pos: np.ndarray) -> np.ndarray:
+    """SDF at each position; PERF: padded to a power of two so the many candidate grids of a budget search
+    share a few compiled shapes."""
+    n = len(pos)
+    padded = np.zeros((max(8, 1 << max(n - 1, 0).bit_length()), 3), np.float32)
+    padded[:n] = pos
+    return np.asarray(_sdf_values_padded(sdf, jnp.asarray(padded)))[:n]
+
+
 def _fibonacci_directions(n: int) -> np.ndarray:
     i = np.arange(n) + 0.5
     z = 1.0 - 2.0 * i / n
@@ -236,7 +250,7 @@ def uniform_probe_grid(
             if scene is None:
                 raise ConfigError(f"inside={inside!r} needs a scene or an sdf")
             sdf = build_sdf(scene)
-        vals = np.asarray(jax.jit(jax.vmap(lambda p: sdf_value(sdf, p)))(jnp.asarray(pos, jnp.float32)))
+        vals = _sdf_values(sdf, pos)
         is_inside = vals < 0
     if inside == "disable":
         active &= ~is_inside
