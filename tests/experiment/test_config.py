@@ -137,3 +137,24 @@ def test_unknown_view_is_refused_before_any_work(tmp_path):
     with pytest.raises(ConfigError, match=r"^eval\.view: scene 'cornell_box' has no view 'CameraMain'"):
         run({"eval": {"view": "CameraMain"}, "results_dir": str(tmp_path)})
     assert not [p for p in (tmp_path / "default").iterdir() if not p.name.startswith(".")]
+
+
+def test_translation_moves_the_scene_relative_to_the_lattice_methods_grid():
+    """For a translated scene the lattice methods get ``shift = −translation`` (added to any given shift), so
+    their box-anchored grid stays put in the world; the skeleton methods get no lattice options."""
+    import numpy as np
+
+    from probeplace.experiment import load_experiment_scene
+    from probeplace.experiment._run import _placer_options
+
+    t_frac = [0.013, 0.0, 0.029]
+    cfg = to_config(compose(["placer=grid", f"scene.translate_frac=[{','.join(map(str, t_frac))}]"]))
+    base = np.asarray(load_experiment_scene(to_config(compose([])).scene).bounds, np.float64)
+    scene, t = load_experiment_scene(cfg.scene, with_translation=True)
+    np.testing.assert_allclose(t, np.asarray(t_frac) * (base[1] - base[0]))
+    np.testing.assert_allclose(np.asarray(scene.bounds, np.float64), base + t, rtol=1e-5, atol=1e-4)
+    assert _placer_options(cfg, t)["shift"] == pytest.approx((-t).tolist())
+    given = to_config(compose(["placer=grid", "+placer.options.shift=[1.0,0.0,0.0]"]))
+    assert _placer_options(given, t)["shift"] == pytest.approx((np.array([1.0, 0.0, 0.0]) - t).tolist())
+    assert _placer_options(given, np.zeros(3)) == {"shift": [1.0, 0.0, 0.0]}
+    assert _placer_options(to_config(compose(["placer=skeleton"])), t) == {}

@@ -19,12 +19,15 @@ A = {"grid": 8.0, "skeleton": 4.0, "vardis": 2.0}
 COUNTS = {"grid": [4, 8, 16], "skeleton": [2, 4, 8], "vardis": [2, 4]}
 
 
-def _fake_run(exp, label, n, *, done=True, exr=False):
+def _fake_run(exp, label, n, *, done=True, exr=False, seed=0, translate=(0.0, 0.0, 0.0), rotate=0.0, cov=1.0):
     import jax.numpy as jnp
 
     from probeplace.render._image_io import save_exr
 
-    cfg = to_config({"name": exp.name, "placer": {"method": label, "budget": n}})
+    scene = {"translate_frac": list(translate), "rotate_deg": rotate}
+    cfg = to_config(
+        {"name": exp.name, "seed": seed, "scene": scene, "placer": {"method": label, "budget": n}}
+    )
     d = exp / run_name(cfg)
     d.mkdir(parents=True)
     (d / "config.yaml").write_text(OmegaConf.to_yaml(OmegaConf.create(config_to_dict(cfg))))
@@ -40,12 +43,14 @@ def _fake_run(exp, label, n, *, done=True, exr=False):
         "method": label,
         "refiner": "none",
         "budget": n,
-        "seed": 0,
+        "seed": seed,
+        "translate_frac": list(translate),
+        "rotate_deg": rotate,
         "n_probes": n,
-        "coverage": 1.0,
+        "coverage": cov,
         "timings": {"place_s": 1.0 * n, "bake_s": 0.5 * n, "place_bake_s": 1.5 * n},
         "memory": {"bytes_total": 1000 * n},
-        "failures": [],
+        "failures": [] if cov == 1.0 else ["coverage<100%"],
         "eval": {
             "mse_glossy_indirect": mse,
             "mse_diffuse_indirect": 2 * mse,
@@ -117,3 +122,34 @@ def test_report_refuses_an_empty_experiment(tmp_path):
     _fake_run(tmp_path / "e", "grid", 2, done=False)
     with pytest.raises(ProbeplaceError, match="no finished run"):
         make_report(tmp_path / "e")
+
+
+def test_stability_report_splits_runs_by_pose(tmp_path):
+    """Coverage per (scene, method, pose) from saved runs: mean / min / max and failure rate match what
+    was written, and the stability chart is drawn."""
+    exp = tmp_path / "stab"
+    covs = {  # (label, pose) -> coverages over two seeds
+        ("grid", "base"): [0.99, 0.98],
+        ("grid", "translated"): [0.97, 1.0],
+        ("grid", "rotated"): [0.8, 0.9],
+        ("skeleton", "base"): [1.0, 1.0],
+        ("skeleton", "rotated"): [1.0, 1.0],
+    }
+    poses = {
+        "base": ((0.0, 0.0, 0.0), 0.0),
+        "translated": ((0.01, 0.0, 0.0), 0.0),
+        "rotated": ((0, 0, 0), 2.5),
+    }
+    for (label, pose), cs in covs.items():
+        for seed, c in enumerate(cs):
+            t, r = poses[pose]
+            _fake_run(exp, label, 8, seed=seed, translate=t, rotate=r, cov=c)
+    text = make_report(exp).read_text()
+    table = text.split("By perturbation")[1]
+    for (label, pose), cs in covs.items():
+        rate = sum(c < 1.0 for c in cs) / len(cs)
+        spread = f"{np.mean(cs):.4f} ({min(cs):.4f} – {max(cs):.4f})"
+        row = f"| cornell_box | {label} | {pose} | 2 | {rate:.0%} | {spread} |"
+        assert row in table, row
+    assert "translated+rotated" not in table
+    assert (exp / "report" / "stability.png").stat().st_size > 1000 and "(stability.png)" in text

@@ -329,6 +329,18 @@ def _tables(runs: list[dict], labels: list[str]) -> list[str]:
     return md
 
 
+def _pose(r: dict) -> str:
+    """How the run's scene was perturbed against the grid: base, translated, rotated, or both."""
+    moved = any(float(x) != 0.0 for x in r.get("translate_frac") or ())
+    turned = float(r.get("rotate_deg") or 0.0) != 0.0
+    return {(False, False): "base", (True, False): "translated", (False, True): "rotated"}.get(
+        (moved, turned), "translated+rotated"
+    )
+
+
+POSES = ("base", "translated", "rotated", "translated+rotated")
+
+
 def _stability(runs: list[dict], labels: list[str]) -> list[str]:
     g = _group(runs)
     if all(len(v) < 2 for v in g.values()):
@@ -351,7 +363,67 @@ def _stability(runs: list[dict], labels: list[str]) -> list[str]:
             f"| {scene} | {lab} | {len(rs)} | {rate:.0%} | {n.mean():.1f} ± {n.std():.1f} "
             f"| {_fmt(min(cov) if cov else None, '.4f')} | {mse_s} | {counts} |"
         )
+    if len({_pose(r) for r in runs}) > 1:
+        md += ["", "### By perturbation of the scene against the grid", ""]
+        md += [
+            "| scene | method | pose | runs | failure rate | coverage mean (min – max) "
+            "| probes (min – max) |",
+            "|---|---|---|---:|---:|---|---|",
+        ]
+        for (scene, lab), rs in sorted(g.items(), key=lambda kv: (kv[0][0], labels.index(kv[0][1]))):
+            for pose in POSES:
+                ps = [r for r in rs if _pose(r) == pose]
+                if not ps:
+                    continue
+                cov = np.array([r["coverage"] for r in ps if r.get("coverage") is not None])
+                n = [r["n_probes"] for r in ps]
+                rate = sum(bool(r.get("failures")) for r in ps) / len(ps)
+                cov_s = f"{cov.mean():.4f} ({cov.min():.4f} – {cov.max():.4f})" if len(cov) else "—"
+                md.append(
+                    f"| {scene} | {lab} | {pose} | {len(ps)} | {rate:.0%} | {cov_s} | {min(n)} – {max(n)} |"
+                )
     return md
+
+
+def _chart_stability(runs, labels, col, out: Path) -> Path | None:
+    """Uncovered surface share of every run, per scene and method, marker by pose (seeds jittered apart)."""
+    rs = [r for r in runs if r.get("coverage") is not None]
+    g = _group(rs)
+    if all(len(v) < 2 for v in g.values()):
+        return None
+    plt = _plt()
+    scenes = sorted({r["scene"] for r in rs})
+    fig, axes = plt.subplots(
+        1, len(scenes), figsize=(4.5 * len(scenes), 4), constrained_layout=True, squeeze=False
+    )
+    marks = dict(zip(POSES, "os^D", strict=True))
+    rng = np.random.default_rng(0)
+    floor = 1e-4
+    for ax, scene in zip(axes[0], scenes, strict=True):
+        labs = [lab for lab in labels if (scene, lab) in g]
+        for i, lab in enumerate(labs):
+            for pose in POSES:
+                ps = [r for r in g[(scene, lab)] if _pose(r) == pose]
+                if ps:
+                    y = [max(1.0 - r["coverage"], floor) for r in ps]
+                    x = i + POSES.index(pose) * 0.18 - 0.27 + rng.uniform(-0.05, 0.05, len(y))
+                    ax.scatter(x, y, marker=marks[pose], color=col[lab], s=22, edgecolors="k", lw=0.4)
+        ax.set_yscale("log")
+        ax.axhline(floor, c="g", lw=0.8, ls="--")
+        ax.set_xticks(range(len(labs)), labs, rotation=30, ha="right", fontsize=8)
+        ax.set_ylabel("uncovered share of the surface")
+        ax.text(len(labs) - 0.5, floor * 1.15, "full coverage", ha="right", va="bottom", fontsize=7, c="g")
+        ax.set_title(scene)
+    handles = [
+        plt.Line2D([], [], marker=marks[p], ls="", color="grey", markeredgecolor="k", label=p)
+        for p in POSES
+        if any(_pose(r) == p for r in rs)
+    ]
+    axes[0][0].legend(handles=handles, fontsize=7)
+    p = out / "stability.png"
+    fig.savefig(p, dpi=110)
+    plt.close(fig)
+    return p
 
 
 def make_report(exp_dir: str | os.PathLike) -> Path:
@@ -399,6 +471,8 @@ def make_report(exp_dir: str | os.PathLike) -> Path:
         md += [" ".join(f"![{p.stem}](top_views/{p.name})" for p in tops), ""]
         md += _tables(runs, labels)
         md += ["", *_stability(runs, labels)]
+        if stab := _chart_stability(runs, labels, col, partial):
+            md += ["", f"![Uncovered surface per run]({stab.name})", ""]
         (partial / "report.md").write_text("\n".join(md) + "\n")
     except BaseException:
         shutil.rmtree(partial, ignore_errors=True)
