@@ -94,6 +94,13 @@ def test_metrics_invariants(cornell_eval):
     # radiance: n × (R+2)² × 3 float32
     assert mem["by_map"]["radiance"] == lf.pos_world.shape[0] * 18 * 18 * 3 * 4
     assert m["n_probes"] == 27 and (m["width"], m["height"]) == (12, 10)
+    # the black-image baseline is the mean square of the reference each MSE is taken against
+    im = result.images
+    for c in ("glossy_indirect", "diffuse_indirect"):
+        ref = np.asarray(im[f"ref_{c}"], np.float64)
+        assert m[f"mse_black_{c}"] == pytest.approx(np.mean(ref**2), rel=1e-5), c
+        err = np.asarray(im[f"error_{c}"], np.float64)
+        assert m[f"mse_{c}"] == pytest.approx(np.mean(err**2), rel=1e-4), c
     json.dumps(m, allow_nan=False)
 
 

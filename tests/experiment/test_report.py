@@ -56,6 +56,7 @@ def _fake_run(exp, label, n, *, done=True, exr=False, seed=0, translate=(0.0, 0.
             "mse_diffuse_indirect": 2 * mse,
             "mse_full": 3 * mse,
             "noise_floor_glossy_indirect": 1e-3,
+            "mse_black_glossy_indirect": 0.5,
             "shading_s_per_frame": 0.01 * n,
             "unresolved_share": 0.0,
         },
@@ -104,6 +105,7 @@ def test_report_from_saved_files(tmp_path):
     g_count = 8  # median of the grid's counts
     g_mse = A["grid"] / g_count
     eq_count = text.split("equal probe count")[1].split("##")[0]
+    assert f"A black image (no indirect light) scores 0.5 here (÷ grid {0.5 / g_mse:.2f})" in eq_count
     for label in ("grid", "skeleton"):  # the grid's count lies inside both measured ranges: interpolated
         v = A[label] / g_count
         assert re.search(rf"\| {label} \| {v:.3g} \| {v / g_mse:.2f} \| interpolated", eq_count)

@@ -369,6 +369,12 @@ def evaluate(
         "noise_floor_glossy_indirect": floor_g,
         "mse_glossy_indirect_no_crn": _mse(probe_g, ref_img["glossy_indirect"]),
         "mse_diffuse_indirect": _mse(probe_d, ref_img["diffuse_indirect"]),
+        # A black image (no indirect light at all) against the same references: a method above this adds
+        # more wrong light (leaks, self-hits) than it recovers.
+        "mse_black_glossy_indirect": _mse(np.zeros_like(crn_ref_g), crn_ref_g),
+        "mse_black_diffuse_indirect": _mse(
+            np.zeros_like(ref_img["diffuse_indirect"]), ref_img["diffuse_indirect"]
+        ),
         "noise_floor_diffuse_indirect": float(np.mean(ref_var["diffuse_indirect"])),
         "mse_full": _mse(probe_full, ref_img["full"]),
         # Emission and direct are shared by both images, so only the reference's indirect noise remains.

@@ -39,6 +39,24 @@ def _mse(r: dict, key: str = PRIMARY) -> float | None:
     return float(v) if isinstance(v, int | float) and math.isfinite(v) else None
 
 
+def _black_mse(r: dict, key: str = PRIMARY) -> float | None:
+    """MSE of a black image (no indirect light) for ``mse_glossy_indirect`` / ``mse_diffuse_indirect``: the
+    evaluation's ``mse_black_*``, else the mean square of the saved reference image (older runs)."""
+    comp = key.removeprefix("mse_")
+    if comp not in ("glossy_indirect", "diffuse_indirect"):
+        return None
+    v = _mse(r, f"mse_black_{comp}")
+    if v is not None:
+        return v
+    exr = r["dir"] / "eval" / "images.exr"
+    if not exr.exists():
+        return None
+    from ..render._image_io import load_exr
+
+    ref = load_exr(exr).get(f"ref_{comp}")
+    return None if ref is None else float(np.mean(np.asarray(ref, np.float64) ** 2))
+
+
 def _shade_s(r: dict) -> float | None:
     v = (r.get("eval") or {}).get("shading_s_per_frame")
     return float(v) if isinstance(v, int | float) else None
@@ -98,6 +116,9 @@ def _chart_mse_vs_count(runs, labels, col, out: Path) -> Path | None:
         floor = [v for r in runs if (v := (r.get("eval") or {}).get(key.replace("mse_", "noise_floor_")))]
         if floor:
             ax.axhline(float(np.median(floor)), ls="--", c="k", lw=0.8, label="reference noise floor")
+        black = [v for r in runs if (v := _black_mse(r, key)) is not None]
+        if black:
+            ax.axhline(float(np.median(black)), ls=":", c="r", lw=1.0, label="black image (no indirect)")
         ax.set_xlabel("probes")
         ax.set_ylabel(key)
         ax.set_yscale("log")
@@ -294,6 +315,14 @@ def _tables(runs: list[dict], labels: list[str]) -> list[str]:
         )
         by = _group(rs)
         md += ["", f"## {scene}: equal probe count ({g_count:g} probes, the grid's count)", ""]
+        black = [v for r in rs if (v := _black_mse(r)) is not None]
+        if black:
+            b = float(np.median(black))
+            md += [
+                f"A black image (no indirect light) scores {b:.3g} here (÷ grid {b / g_mse:.2f}): a method "
+                "above it adds more wrong light than it recovers.",
+                "",
+            ]
         md += ["| method | MSE glossy ind. at that count | ÷ grid | how |", "|---|---:|---:|---|"]
         for lab in labels:
             pts = [(r["n_probes"], _mse(r)) for r in by.get((scene, lab), [])]
