@@ -83,3 +83,27 @@ def test_default_spacing_and_errors():
         sample_surface(scene, key=jax.random.key(0), spacing=-1.0)
     with pytest.raises(ConfigError):
         default_sample_spacing(scene, quality=float("inf"))
+
+
+def test_requested_count_on_a_mesh_with_more_triangles_than_samples():
+    """``min_one=False`` keeps ~A/s² samples where the one-per-triangle floor would more than double them
+    (temple: 2,284 triangles for 1,500 samples), the weights still add up to the mesh area, and the
+    weighted integral of position is unbiased (mean over keys vs the exact Σ A_t · centroid_t)."""
+    from probeplace.geometry._samples import _tri_areas
+    from probeplace.scene import load_scene
+
+    scene = load_scene("temple")
+    tri, area, _ = _tri_areas(scene)
+    s = float(np.sqrt(area.sum() / 1500))
+    assert sample_surface(scene, key=jax.random.key(0), spacing=s).n > 3000  # the floor's count
+    exact = (area[:, None] * tri.mean(axis=1)).sum(0)
+    est = []
+    for k in range(24):
+        smp = sample_surface(scene, key=jax.random.key(k), spacing=s, min_one=False)
+        assert abs(smp.n - 1500) <= 1
+        w = np.asarray(smp.area, np.float64)
+        assert w.sum() == pytest.approx(area.sum(), rel=1e-6)
+        est.append((w[:, None] * np.asarray(smp.position, np.float64)).sum(0))
+    est = np.asarray(est)
+    sem = est.std(0, ddof=1) / np.sqrt(len(est))
+    assert np.all(np.abs(est.mean(0) - exact) <= 4 * sem + 1e-9 * np.abs(exact))

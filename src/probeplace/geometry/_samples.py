@@ -11,6 +11,12 @@ Stratification (so integrals over the surface have low variance and every part i
 * within a triangle: n_t strata along the first of two uniform coordinates, mapped to the triangle by
   the area-preserving warp (1 − √r₁, √r₁(1 − r₂), √r₁ r₂) (Osada et al. 2002, "Shape distributions", §4.2);
 * weights A_t / n_t, so the weights of a triangle add up to its area and all weights to the mesh area.
+
+With ``min_one=False`` (a requested sample count, e.g. a refiner's few-thousand-sample problem) the "at least
+one per triangle" floor is dropped, so a mesh with more triangles than samples (Crytek Sponza: 262k) still
+gets about the requested count: a triangle smaller than s² then holds one sample with probability A_t/s²,
+and the samples on such triangles share their total area equally (each stands for about s²), so the
+weights still add up to the mesh area; larger triangles keep A_t / n_t.
 """
 
 from __future__ import annotations
@@ -86,20 +92,25 @@ def default_sample_spacing(scene: Scene, *, quality: float = 1.0) -> float:
     return float(f"{s:.3g}")
 
 
-def sample_counts(area: np.ndarray, spacing: float, offset: float) -> np.ndarray:
-    """Samples per triangle by systematic sampling of the cumulative area; ≥ 1 each (see module docstring)."""
+def sample_counts(area: np.ndarray, spacing: float, offset: float, *, min_one: bool = True) -> np.ndarray:
+    """Samples per triangle by systematic sampling of the cumulative area; ≥ 1 each unless ``min_one`` is
+    False (see module docstring)."""
     c = np.concatenate([[0.0], np.cumsum(area / spacing**2)])
     n = np.diff(np.floor(c + offset)).astype(np.int64)
-    return np.maximum(n, 1)
+    return np.maximum(n, 1) if min_one else n
 
 
-def sample_surface(scene: Scene, *, key: jax.Array, spacing: float | None = None) -> SurfaceSamples:
+def sample_surface(
+    scene: Scene, *, key: jax.Array, spacing: float | None = None, min_one: bool = True
+) -> SurfaceSamples:
     """Area-stratified samples of the scene's triangles (host computation; deterministic per key).
 
     Args:
         scene: the scene.
         key: PRNG key; the same key gives the same samples.
         spacing: one sample per spacing² of area (scene units); ``None`` uses :func:`default_sample_spacing`.
+        min_one: at least one sample per triangle (the coverage atlas); ``False`` keeps the count near
+            A/spacing² on meshes with more triangles than that (module docstring).
 
     Returns:
         The samples, float32 / int32, ordered by triangle.
@@ -113,8 +124,10 @@ def sample_surface(scene: Scene, *, key: jax.Array, spacing: float | None = None
     tri, area, normal = _tri_areas(scene)
     k_off, k_pts = jax.random.split(key)
     offset = float(jax.random.uniform(k_off, ()))
-    counts = sample_counts(area, s, offset)
+    counts = sample_counts(area, s, offset, min_one=min_one)
     n = int(counts.sum())
+    if n == 0:  # a tiny mesh at a coarse spacing: one sample on the largest triangle
+        counts[int(np.argmax(area))] = n = 1
     t = np.repeat(np.arange(len(area)), counts)
     first = np.cumsum(counts) - counts
     rank = np.arange(n) - first[t]  # stratum index within the triangle
@@ -125,6 +138,12 @@ def sample_surface(scene: Scene, *, key: jax.Array, spacing: float | None = None
     bary = np.stack([1.0 - sq, sq * (1.0 - r2), sq * r2], axis=1)
     pos = np.einsum("nk,nkj->nj", bary, tri[t])
     weights = area[t] / counts[t]
+    if (
+        not min_one
+    ):  # triangles under one stratum hold a sample with probability A_t/s²: they share their area
+        small = area[t] < s * s
+        if small.any():
+            weights[small] = area[area < s * s].sum() / small.sum()
     return SurfaceSamples(
         position=jnp.asarray(pos.astype(np.float32)),
         normal=jnp.asarray(normal[t].astype(np.float32)),

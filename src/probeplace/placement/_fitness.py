@@ -243,7 +243,8 @@ def make_problem(
         grid: the SDF; built (and cached) with default resolution when ``None``. Its far field is raised
             with :func:`tighten_sdf` either way.
         samples: the atlas; when ``None`` drawn at the default density, or at about ``n_samples`` samples
-            (area-stratified at spacing √(A/n_samples)) — optimisation uses a few thousand.
+            (area-stratified at spacing √(A/n_samples), without the one-per-triangle floor so that a
+            many-triangle mesh still gets about that many) — optimisation uses a few thousand.
         n_samples: see ``samples``.
         config: fitness parameters.
         cache_dir: passed to :func:`probeplace.geometry.build_sdf`.
@@ -263,7 +264,7 @@ def make_problem(
             tri = np.asarray(scene.vertices, np.float64)[np.asarray(scene.faces)]
             area = 0.5 * np.linalg.norm(np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0]), axis=1).sum()
             spacing = float(np.sqrt(area / n_samples))
-        samples = sample_surface(scene, key=key, spacing=spacing)
+        samples = sample_surface(scene, key=key, spacing=spacing, min_one=spacing is None)
     lo, hi = scene.bounds[0], scene.bounds[1]
     diag = float(np.linalg.norm(np.asarray(hi) - np.asarray(lo)))
     clearance = config.clearance_voxels * float(grid.voxel_size)
