@@ -54,3 +54,22 @@ def test_auto_budget_reports_the_refiner_status(small):
     assert _refine_report(res.refine_status, res.refined)["refine_converged"] is False
     assert _refine_report("ok", True) == {"refine_status": "ok", "refine_converged": True, "refined": True}
     assert _refine_report(None, False) == {"refined": False}
+
+
+def test_binding_budget_pools_the_gap_probes(cornell):
+    """With a budget that binds before full coverage, gap probes must compete with the seeds: from one
+    corner's candidates the seeds-only search fills the budget with corner probes, the pooled search (the
+    full search's probes + the seeds) fills it better; the result respects the budget and reports the
+    coverage an independent recomputation gives."""
+    from probeplace.placement._auto import _search
+
+    problem = make_problem(cornell, key=jax.random.key(0))
+    lo, hi = np.asarray(problem.lo, np.float64), np.asarray(problem.hi, np.float64)
+    frac = np.array([[0.08, 0.08, 0.08], [0.12, 0.08, 0.08], [0.08, 0.12, 0.08]])
+    corner = (lo + frac * (hi - lo)).astype(np.float32)  # three candidates huddled in one corner
+    seeds_only = _search(problem, key=jax.random.key(0), candidates=corner, max_probes=2)
+    res = auto_budget(problem, key=jax.random.key(0), candidates=corner, max_probes=2)
+    assert len(seeds_only.pos) == 2 and not seeds_only.reached
+    assert 1 <= len(res.pos) <= 2 and res.coverage > seeds_only.coverage + 0.01
+    assert binary_coverage(problem, binary_visibility(problem, res.pos)) == pytest.approx(res.coverage)
+    assert "pooled_search_s" in res.timings and res.n_candidates > 1
