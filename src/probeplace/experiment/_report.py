@@ -187,13 +187,14 @@ def _chart_errors(runs, out: Path, component: str = "glossy_indirect") -> Path |
     from ..render._image_io import load_exr
 
     imgs = []
-    for r in runs:
+    for r in sorted(runs, key=lambda r: (r["label"], r["n_probes"], r["seed"])):
         exr = r["dir"] / "eval" / "images.exr"
         if exr.is_file():
             layers = load_exr(exr)
             if f"error_{component}" in layers:
+                title = f"{r['label']} · {r['n_probes']} probes · seed {r['seed']}"
                 imgs.append(
-                    (r["run"], layers[f"error_{component}"].mean(axis=-1), layers.get(f"ref_{component}"))
+                    (title, layers[f"error_{component}"].mean(axis=-1), layers.get(f"ref_{component}"))
                 )
     if not imgs:
         return None
@@ -208,7 +209,7 @@ def _chart_errors(runs, out: Path, component: str = "glossy_indirect") -> Path |
     im = None
     for ax, (name, err, _) in zip(axes.ravel(), imgs, strict=False):
         im = ax.imshow(err, cmap="viridis", vmin=0, vmax=vmax)
-        ax.set_title(name.split("__")[1] if "__" in name else name, fontsize=8)
+        ax.set_title(name, fontsize=8)
     for ax in axes.ravel():
         ax.set_axis_off()
     fig.colorbar(
