@@ -106,12 +106,15 @@ def test_preset_runs_tiny(preset, evaluate, tmp_path):
     assert (report.parent / "top_views" / f"{res.out_dir.name}.png").is_file()
 
 
-@pytest.mark.slow
-def test_sponza_preset_runs_tiny(tmp_path, monkeypatch):
+@pytest.mark.parametrize("evaluate", [False, pytest.param(True, marks=pytest.mark.slow)], ids=["", "eval"])
+def test_sponza_preset_runs_tiny(evaluate, tmp_path, monkeypatch):
+    """Sponza from the shared scenes (skipped with the reason where they are absent); the default run
+    without the evaluation, like the other presets."""
     from probeplace.scene import SCENE_PATH_ENV
 
     from ..helpers import shared_scene_path
 
     monkeypatch.setenv(SCENE_PATH_ENV, str(shared_scene_path("crytek_sponza.glb").parent))
-    cfg, res = _tiny_run("sponza_comparison", tmp_path)
-    _check_run(cfg, res)
+    cfg, res = _tiny_run("sponza_comparison", tmp_path, [] if evaluate else ["eval=none"])
+    m = _check_run(cfg, res)
+    assert cfg.scene.name == "crytek_sponza" and m["n_probes"] >= 1
