@@ -138,9 +138,8 @@ def sample_surface(
     bary = np.stack([1.0 - sq, sq * (1.0 - r2), sq * r2], axis=1)
     pos = np.einsum("nk,nkj->nj", bary, tri[t])
     weights = area[t] / counts[t]
-    if (
-        not min_one
-    ):  # triangles under one stratum hold a sample with probability A_t/s²: they share their area
+    if not min_one:
+        # triangles under one stratum hold a sample with probability A_t/s²: they share their area
         small = area[t] < s * s
         if small.any():
             weights[small] = area[area < s * s].sum() / small.sum()

@@ -31,6 +31,7 @@ removal) next to the final set.
 
 from __future__ import annotations
 
+import dataclasses
 import heapq
 import logging
 import time
@@ -236,14 +237,17 @@ def auto_budget(
     target, the full search runs too and the budget is chosen again, greedily, from its probes and the
     seeds; the better of the two choices is returned. Arguments as :func:`_search` (below).
     """
-    kw = dict(target=target, max_rounds=max_rounds, gap_candidates=gap_candidates, caster=caster)
-    kw["search_samples"] = search_samples
+    kw = dict(
+        target=target,
+        max_rounds=max_rounds,
+        gap_candidates=gap_candidates,
+        caster=caster,
+        search_samples=search_samples,
+    )
+    t0 = time.perf_counter()
     if candidates is None:
-        t0 = time.perf_counter()
         candidates = np.concatenate([skeleton_seeds(problem), medial_axis_seeds(problem)])
-        seeds_s = time.perf_counter() - t0
-    else:
-        seeds_s = 0.0
+    seeds_s = time.perf_counter() - t0
     refine = dict(refiner=refiner, refine_problem=refine_problem)
     res = _search(problem, key=key, candidates=candidates, max_probes=max_probes, **refine, **kw)
     res.timings["seeds_s"] = seeds_s
@@ -255,26 +259,17 @@ def auto_budget(
     pooled = _search(problem, key=key, candidates=pool, max_probes=max_probes, **refine, **kw)
     best = pooled if pooled.coverage > res.coverage else res
     timings = {**best.timings, "seeds_s": seeds_s, "pooled_search_s": time.perf_counter() - t0}
-    return AutoResult(
-        pos=best.pos,
-        coverage=best.coverage,
-        curve=best.curve,
-        n_candidates=len(pool),
-        reached=best.reached,
-        timings=timings,
-        refine_status=best.refine_status,
-        refined=best.refined,
-    )
+    return dataclasses.replace(best, n_candidates=len(pool), timings=timings)
 
 
 def _search(
     problem: PlacementProblem,
     *,
     key: jax.Array,
+    candidates: np.ndarray,
     target: float = 1.0,
     refiner: AbstractRefiner | None = None,
     refine_problem: PlacementProblem | None = None,
-    candidates: np.ndarray | None = None,
     max_rounds: int = 12,
     gap_candidates: int = 32,
     max_probes: int | None = None,
@@ -289,7 +284,7 @@ def _search(
         target: coverage share to reach, in (0, 1].
         refiner: refines the chosen set on ``refine_problem`` (soft objective); ``None``: no refinement.
         refine_problem: a (smaller) problem for the refiner; default ``problem``.
-        candidates: start candidates; default skeleton ∪ medial-axis seeds.
+        candidates: start candidates (:func:`auto_budget`: default skeleton ∪ medial-axis seeds).
         max_rounds: rounds of gap candidates before giving up.
         gap_candidates: unseen samples used per round.
         max_probes: stop adding beyond this count.
@@ -307,10 +302,6 @@ def _search(
     if search_samples is not None and search_samples < 1:
         raise ConfigError(f"search_samples must be positive or None, got {search_samples}")
     timings: dict[str, float] = {}
-    t0 = time.perf_counter()
-    if candidates is None:
-        candidates = np.concatenate([skeleton_seeds(problem), medial_axis_seeds(problem)])
-    timings["seeds_s"] = time.perf_counter() - t0
     cand = np.asarray(candidates, np.float32).reshape(-1, 3)
     cand = cand[probe_clearance(problem, cand) >= float(problem.clearance)]
     a_all = np.asarray(problem.area, np.float64) * np.asarray(problem.coverable)

@@ -340,6 +340,7 @@ def _place_baseline(
     t0 = time.perf_counter()
     sdf = build_sdf(scene)  # PERF: once, for every candidate grid's inside test and for the coverage problem
     timings["sdf_s"] = time.perf_counter() - t0
+    lo, hi = scene_box(scene)  # every lattice below is anchored to it (then moved by ``shift``)
     t0 = time.perf_counter()
     if method == "grid":
         dims = opts["dims"]
@@ -353,7 +354,6 @@ def _place_baseline(
         key = k_g if jitter else None
         # ``offset`` (fraction of a cell) and ``shift`` (scene units) move the lattice against the geometry:
         # the alignment study of the stability preset.
-        lo, hi = scene_box(scene)
         cell = (hi - lo) / np.broadcast_to(np.asarray(dims, np.float64), (3,))
         offset = np.asarray(opts["offset"], np.float64) + shift / cell
         r = uniform_probe_grid(
@@ -365,12 +365,10 @@ def _place_baseline(
     elif method == "lod-grid":
         base = opts["base_divisions"]
         if base is None:
-            lo, hi = scene_box(scene)
             base = tuple(int(max(1, round(4 * e / np.max(hi - lo)))) for e in hi - lo)
         opts["base_divisions"] = list(base)
         levels = list(range(int(opts["levels"]) + 1)) if budget != "auto" else [int(opts["levels"])]
         g = None
-        lo, hi = scene_box(scene)
         for lvl in levels[::-1]:
             g = lod_probe_grid(
                 scene, base_divisions=tuple(base), sub_division_level=lvl, bounds=(lo + shift, hi + shift)
@@ -383,7 +381,6 @@ def _place_baseline(
         opts["levels"] = int(g.sub_division_level)
         extra = {"lod_levels": np.bincount(g.levels, minlength=g.sub_division_level + 1).tolist()}
     else:
-        lo, hi = scene_box(scene)
         spacing = float(np.prod(hi - lo) / int(opts["dense_probes"])) ** (1 / 3)
         if opts["dense"] == "grid":
             r = uniform_probe_grid(scene, spacing=spacing, inside=opts["inside"], offset=shift / spacing)
