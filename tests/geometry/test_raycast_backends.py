@@ -13,11 +13,18 @@ from probeplace.geometry import (
     BruteForceCaster,
     BVHCaster,
     EmbreeCaster,
+    complete_hit,
     make_caster,
 )
 from probeplace.geometry._bvh_build import build_bvh, thread_bvh
-from probeplace.scene import load_scene
-from tests.geometry.raycast_reference import assert_same_hits, random_rays
+from probeplace.scene import build_scene, load_scene, make_materials
+from tests.geometry.raycast_reference import (
+    assert_same_hits,
+    compare_hits,
+    random_rays,
+    tie_or_same,
+    verified_ties,
+)
 
 SCENES = ["cornell_box", "temple", "rooms", "courtyard"]
 N_RAYS = 3000  # one ray count everywhere: each caster compiles once per scene
@@ -109,6 +116,145 @@ def test_empty_and_bad_batches(cornell):
         EmbreeCaster(cornell)._run(
             np.zeros((4, 2), np.float32), np.zeros((4, 2), np.float32), 1.0, "INTERSECT"
         )
+
+
+# --- ties: overlapping coplanar triangles -------------------------------------------------------------
+# A and B lie in the plane z = 0 and overlap; C is parallel to them, 0.5 below A. Every coordinate is
+# dyadic (exact in float32). A ray through the overlap crosses A and B at the same distance: which one a
+# caster reports follows its traversal order (for Embree, the instruction set it picks at run time), so
+# the checks must accept either, whatever the triangle order in the scene.
+A, B, C = 0, 1, 2
+TIE_TRIANGLES = np.array(
+    [
+        [[0.0, 0.0, 0.0], [2.0, 0.0, 0.0], [0.0, 2.0, 0.0]],  # A
+        [[0.5, 0.5, 0.0], [2.5, 0.5, 0.0], [0.5, 2.5, 0.0]],  # B: overlaps A in x, y >= 0.5, x + y <= 2
+        [[0.0, 0.0, -0.5], [2.0, 0.0, -0.5], [0.0, 2.0, -0.5]],  # C: below A
+    ],
+    np.float32,
+)
+ORDERS = [(0, 1, 2), (1, 0, 2), (2, 1, 0)]  # scene triangle i is TIE_TRIANGLES[order[i]]
+
+
+def _tie_scene(order):
+    tris = TIE_TRIANGLES[list(order)]
+    mats = make_materials(["a", "b", "c"], np.eye(3))  # a material per triangle: a tie may differ in it
+    scene = build_scene("ties", tris.reshape(-1, 3), np.arange(9).reshape(3, 3), np.asarray(order), mats)
+    np.testing.assert_array_equal(np.asarray(scene.triangles), tris)  # nothing dropped or reordered
+    return scene
+
+
+def _tie_rays():
+    """Rays of known outcome: (origins, directions, {kind: ray mask}); kind "ab" crosses A and B at the
+    same distance (from above, straight and slanted, and from below), "a" / "b" / "c" hit that triangle
+    first with no other at that distance, "miss" nothing."""
+    overlap = [(x, y) for x in (0.625, 0.75, 0.875, 1.0) for y in (0.625, 0.75, 0.875, 1.0) if x + y < 1.9]
+    down, up, slant = (0.0, 0.0, -1.0), (0.0, 0.0, 1.0), (0.25, -0.125, -1.0)
+    rays = {
+        "ab": [((x, y, 1.0), down) for x, y in overlap]
+        + [((x - 0.25, y + 0.125, 1.0), slant) for x, y in overlap]
+        + [((x, y, -0.25), up) for x, y in overlap],
+        "a": [((x, y, 1.0), down) for x, y in [(0.25, 0.25), (0.25, 1.25), (1.25, 0.25)]],
+        "b": [((x, y, 1.0), down) for x, y in [(2.0, 0.75), (0.75, 2.0), (1.5, 1.0)]],
+        "c": [((x, y, -1.0), up) for x, y in [(0.25, 0.25), (1.25, 0.25)]],
+        "miss": [((0.75, 0.75, 1.0), up), ((5.0, 5.0, 1.0), down)],
+    }
+    o = np.array([r[0] for v in rays.values() for r in v], np.float32)
+    d = np.array([r[1] for v in rays.values() for r in v], np.float32)
+    d /= np.linalg.norm(d, axis=1, keepdims=True)
+    kind = np.concatenate([[k] * len(v) for k, v in rays.items()])
+    return jnp.asarray(o), jnp.asarray(d), {k: kind == k for k in rays}
+
+
+def _expected_ok(tri_orig, t, kinds):
+    """Ground truth per ray kind; ``tri_orig`` in TIE_TRIANGLES' numbering."""
+    ok = np.zeros(tri_orig.shape, bool)
+    ok[kinds["ab"]] = np.isin(tri_orig[kinds["ab"]], (A, B))
+    for k, want in (("a", A), ("b", B), ("c", C), ("miss", -1)):
+        ok[kinds[k]] = tri_orig[kinds[k]] == want
+    return ok & (np.isfinite(t) == (tri_orig >= 0))
+
+
+@pytest.fixture(scope="module")
+def tie_hits():
+    """Per triangle order: the scene and every backend's closest hits for :func:`_tie_rays`."""
+    o, d, _ = _tie_rays()
+    out = {}
+    for order in ORDERS:
+        scene = _tie_scene(order)
+        casters = {
+            "embree": EmbreeCaster(scene, threads=1),
+            "bvh": BVHCaster(scene, lanes=16),
+            "bvh-fused": BVHCaster(scene, schedule="fused", lanes=16),
+            "brute": BruteForceCaster(scene),
+        }
+        out[order] = scene, {k: c.closest_hit(o, d) for k, c in casters.items()}
+    return out
+
+
+@pytest.mark.parametrize("order", ORDERS, ids=lambda o: "".join("ABC"[i] for i in o))
+def test_backends_agree_whichever_tied_triangle_they_report(tie_hits, order):
+    o, d, kinds = _tie_rays()
+    scene, hits = tie_hits[order]
+    perm = np.asarray(order)
+    base_scene, base_hits = tie_hits[ORDERS[0]]
+    for name, hit in hits.items():
+        tri, t = np.asarray(hit.tri), np.asarray(hit.t)
+        tri_orig = np.where(tri >= 0, perm[np.maximum(tri, 0)], -1)
+        ok = _expected_ok(tri_orig, t, kinds)
+        assert ok.all(), f"{name}: rays {np.flatnonzero(~ok)} report {tri_orig[~ok]} at t={t[~ok]}"
+        h = tri >= 0
+        np.testing.assert_array_equal(np.asarray(hit.material)[h], tri_orig[h], err_msg=name)
+        if name != "embree":
+            assert_same_hits(scene, o, d, hit, hits["embree"], label=name)
+        # the same rays in the first order's scene (triangle ids mapped back): the order changes nothing
+        # but, at most, which tied triangle is reported
+        base = base_hits[name]
+        c = compare_hits(base_scene.triangles, o, d, tri_orig, t, np.asarray(base.tri), np.asarray(base.t))
+        assert c.agree.all(), f"{name}: order {order} disagrees with order {ORDERS[0]}"
+
+
+def test_tie_check_accepts_only_verified_ties(tie_hits):
+    """The tie check fires where it must (A and B at the same distance) and nowhere else: a triangle the
+    ray misses, or crosses at another distance, is rejected — directly and through assert_same_hits."""
+    o, d, kinds = _tie_rays()
+    scene, hits = tie_hits[ORDERS[0]]
+    tris = np.asarray(scene.triangles, np.float64)
+    n = o.shape[0]
+    full = lambda i: np.full(n, i)
+    ab, a_only = kinds["ab"], kinds["a"]
+    # every overlap ray is a verified A/B tie; a ray that crosses A alone is not
+    assert verified_ties(tris, o, d, full(A), full(B))[ab].all()
+    assert not verified_ties(tris, o, d, full(A), full(B))[a_only].any()
+    # C: crossed by the downward overlap rays, but 0.5 further on; a deliberately wrong triangle
+    same, ok = tie_or_same(scene, o, d, full(A), full(C))
+    assert not same.any() and not ok.any()
+    same, ok = tie_or_same(scene, o, d, full(A), full(B))
+    assert not same.any() and np.array_equal(ok, ab)
+
+    ref = hits["embree"]
+    tri_ref = np.asarray(ref.tri)
+
+    def swapped(new_tri):  # Embree's distances and barycentrics with other triangle ids
+        return complete_hit(scene, ref.t, jnp.asarray(new_tri, jnp.int32), ref.bary)
+
+    # the other tied triangle on every overlap ray: accepted, and the same-id share says so
+    other = np.where(ab, np.where(tri_ref == A, B, A), tri_ref)
+    c = assert_same_hits(scene, o, d, swapped(other), ref, label="other tied triangle")
+    assert c.tie[ab].all() and c.same_id_share == pytest.approx(1.0 - ab.mean())
+    # C on the overlap rays (at the tied distance): not a tie, rejected
+    wrong = np.where(ab, C, tri_ref)
+    with pytest.raises(AssertionError, match="not a verified coplanar tie"):
+        assert_same_hits(scene, o, d, swapped(wrong), ref, label="wrong triangle")
+    # B on the rays that cross A alone: rejected
+    wrong = np.where(a_only, B, tri_ref)
+    with pytest.raises(AssertionError, match="not a verified coplanar tie"):
+        assert_same_hits(scene, o, d, swapped(wrong), ref, label="missed triangle")
+    # a different distance at a tie: rejected by the distance check
+    t_off = np.where(ab, np.asarray(ref.t) + 0.01, np.asarray(ref.t))
+    shifted = complete_hit(scene, jnp.asarray(t_off, ref.t.dtype), jnp.asarray(other, jnp.int32), ref.bary)
+    with pytest.raises(AssertionError):
+        assert_same_hits(scene, o, d, shifted, ref, label="shifted")
+    assert not compare_hits(tris, o, d, other, t_off, tri_ref, np.asarray(ref.t)).agree[ab].any()
 
 
 # --- BVH build invariants -------------------------------------------------------------------------

@@ -21,6 +21,7 @@ def test_sponza_bvh_agrees_with_embree():
     o, d = random_rays(scene, 20000, seed=7)
     ref = EmbreeCaster(scene, threads=1).closest_hit(o, d)
     hit = BVHCaster(scene).closest_hit(o, d)
-    # Sponza's overlapping coplanar wall quads make ~1 % of rays a verified tie (measured 0.9906 same id on
-    # 1M rays, docs/raycast.md); every other ray must hit the same triangle
-    assert_same_hits(scene, o, d, hit, ref, label="sponza", min_same_id=0.98)
+    # Sponza's overlapping coplanar wall quads make ~1 % of rays a verified tie (0.9906 same id on 1M rays
+    # in docs/raycast.md; the share follows Embree's traversal order, so it is not judged): every ray must
+    # agree on hit/miss and distance, and hit the same triangle or a verified tie
+    assert_same_hits(scene, o, d, hit, ref, label="sponza")
