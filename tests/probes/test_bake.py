@@ -1,26 +1,38 @@
 """Probe baking plumbing and pre-filters, against closed forms: ray–box distances in a cube room,
 irradiance of constant and linear radiance, moments of a constant distance, a NumPy MIP reference,
-lossless save/load, and the inside-geometry flag."""
+lossless save/load, surfels oriented toward the probe, the inside-geometry flag (winding-independent),
+and the bake settings recorded on the probes and checked against an evaluation."""
 
 from __future__ import annotations
 
+import equinox as eqx
 import jax
 import jax.numpy as jnp
 import numpy as np
 import pytest
 
-from probeplace._core import ConfigError, ProbeplaceError, ProbeSet, strip_border, texel_directions
+from probeplace._core import (
+    BakeSettings,
+    ConfigError,
+    ProbeplaceError,
+    ProbeSet,
+    strip_border,
+    texel_directions,
+)
 from probeplace.geometry import BruteForceCaster
 from probeplace.probes import (
     BakeConfig,
+    bake_depth_for,
     bake_probes,
+    check_bake_settings,
     distance_moments,
     irradiance_map,
     load_probes,
     mip_chains,
+    path_traced_radiance,
     save_probes,
 )
-from probeplace.scene import build_scene, make_materials
+from probeplace.scene import build_scene, make_camera, make_materials
 from probeplace.scene._primitives import box
 
 ROOM_LO, ROOM_HI = np.array([0.0, 0.0, 0.0]), np.array([4.0, 3.0, 5.0])
@@ -136,9 +148,14 @@ def test_save_load_round_trip_is_lossless(room, tmp_path, getkey):
     )
     path = save_probes(tmp_path / "p.npz", lf)
     back = load_probes(path)
+    # every leaf (maps, backface, the settings' numbers) and the static structure (settings' names)
+    assert jax.tree.structure(back) == jax.tree.structure(lf)
     for a, b in zip(jax.tree.leaves(lf), jax.tree.leaves(back), strict=True):
         assert a.dtype == b.dtype
         np.testing.assert_array_equal(np.asarray(a), np.asarray(b))
+    assert back.bake.to_dict() == lf.bake.to_dict()
+    assert back.bake.scene == "test_room" and back.bake.radiance == "custom"
+    assert int(back.bake.n_sub) == 2 and int(back.bake.radiance_res) == 8
     (tmp_path / "bad.npz").write_bytes(b"not a zip")
     with pytest.raises(ProbeplaceError, match="not a readable"):
         load_probes(tmp_path / "bad.npz")
@@ -147,7 +164,15 @@ def test_save_load_round_trip_is_lossless(room, tmp_path, getkey):
 
 
 @pytest.mark.parametrize(
-    "kwargs", [{"radiance_res": 12}, {"n_sub": 0}, {"moment_power": -1.0}, {"inside_backface_share": 1.5}]
+    "kwargs",
+    [
+        {"radiance_res": 12},
+        {"n_sub": 0},
+        {"moment_power": -1.0},
+        {"inside_backface_share": 1.5},
+        {"inside_test": "parity"},
+        {"inside_neighbours": 0},
+    ],
 )
 def test_bad_config_is_a_clear_error(kwargs):
     with pytest.raises(ConfigError, match="BakeConfig"):
@@ -187,27 +212,38 @@ def test_contact_sheet_is_a_png_with_one_row_per_probe(room, tmp_path, getkey):
     assert w > h > 2 * 100  # six columns, two rows of ~190 px
 
 
-def test_path_traced_bake_matches_the_furnace_closed_form(getkey):
-    """Inside a closed box whose walls all emit L_e and reflect albedo ρ (Lambert), a probe sees
-    emission L_e in every direction and reflected radiance ρL_e + ρ²L_e with paths of at most three
-    segments (no Russian roulette before depth 5): an exact oracle for every texel of every map."""
-    from probeplace.probes import path_traced_radiance
+FURNACE_RHO, FURNACE_LE, FURNACE_DEPTH = 0.5, 1.0, 3
+
+
+@pytest.fixture(scope="module")
+def furnace():
+    """A closed box whose walls all emit L_e and reflect albedo ρ (Lambert), a camera inside, one probe
+    baked with the path tracer at depth 3 (the depth of an evaluation with max_depth 4)."""
     from probeplace.render import default_caster
 
-    rho, le = 0.5, 1.0
     v, f = box((0.0, 0.0, 0.0), (2.0, 2.0, 2.0))
-    mats = make_materials(["wall"], np.full((1, 3), rho), emission=np.full((1, 3), le))
-    scene = build_scene("furnace", v, f[:, ::-1], np.zeros(len(f), int), mats)
+    mats = make_materials(["wall"], np.full((1, 3), FURNACE_RHO), emission=np.full((1, 3), FURNACE_LE))
+    cam = make_camera((1.0, 1.0, 0.2), (1.0, 1.0, 2.0), 60.0, "inside")
+    scene = build_scene("furnace", v, f[:, ::-1], np.zeros(len(f), int), mats, views=(cam,))
     caster = default_caster(scene)
     probes = ProbeSet(pos_world=jnp.asarray([[0.7, 1.1, 1.3]], jnp.float32), active=jnp.ones(1, bool))
     lf = bake_probes(
         scene,
         probes,
         caster=caster,
-        radiance_fn=path_traced_radiance(scene, spp=32, max_depth=3, specular=0.0, caster=caster),
-        key=getkey(),
+        radiance_fn=path_traced_radiance(scene, spp=32, max_depth=FURNACE_DEPTH, specular=0.0, caster=caster),
+        key=jax.random.key(5),
         config=BakeConfig(radiance_res=8, irradiance_res=4, moments_res=4, n_sub=2, progress=False),
     )
+    return scene, lf
+
+
+def test_path_traced_bake_matches_the_furnace_closed_form(furnace):
+    """Inside the furnace box a probe sees emission L_e in every direction and reflected radiance
+    ρL_e + ρ²L_e with paths of at most three segments (no Russian roulette before depth 5): an exact
+    oracle for every texel of every map."""
+    _, lf = furnace
+    rho, le = FURNACE_RHO, FURNACE_LE
     emission = np.asarray(strip_border(lf.emission))
     reflected = np.asarray(strip_border(lf.radiance))
     np.testing.assert_allclose(emission, le, rtol=1e-5)
@@ -216,3 +252,217 @@ def test_path_traced_bake_matches_the_furnace_closed_form(getkey):
     assert np.abs(reflected - expected).max() < 0.15 * expected  # per texel: 128 paths
     # Irradiance from reflected radiance: E = π · const for every receiver normal.
     np.testing.assert_allclose(np.asarray(lf.irradiance).mean(), np.pi * reflected.mean(), rtol=0.02)
+
+
+def test_path_depth_rule_is_one_definition():
+    """A texel replaces the rest of a camera path after its first bounce: one segment fewer."""
+    assert [bake_depth_for(d) for d in (2, 3, 4, 8)] == [1, 2, 3, 7]
+    for bad in (1, 0, -3):  # (non-ints are refused too; beartype checks the annotation in tests)
+        with pytest.raises(ConfigError, match="max_depth"):
+            bake_depth_for(bad)
+
+
+def test_bake_settings_are_recorded_and_round_trip(furnace, tmp_path):
+    _, lf = furnace
+    b = lf.bake
+    assert (b.scene, b.radiance) == ("furnace", "path_traced")
+    assert (int(b.path_depth), int(b.spp), int(b.n_sub), int(b.radiance_res)) == (FURNACE_DEPTH, 32, 2, 8)
+    assert float(b.specular) == 0.0
+    np.testing.assert_array_equal(np.asarray(b.key), np.asarray(jax.random.key_data(jax.random.key(5))))
+    back = load_probes(save_probes(tmp_path / "f.npz", lf))
+    assert back.bake.to_dict() == b.to_dict()
+    # the evaluation that matches (camera depth = path depth + 1, same specular factor) is accepted
+    check_bake_settings(back, scene_name="furnace", eval_max_depth=FURNACE_DEPTH + 1, specular=0.0)
+
+
+@pytest.mark.parametrize(
+    ("kwargs", "match"),
+    [
+        (
+            {"eval_max_depth": 8, "specular": 0.0},
+            r"baked with path depth 3 but evaluation max_depth=8 needs 7 .*--max-depth 8 .*--max-depth 4",
+        ),
+        ({"eval_max_depth": 4}, r"baked with specular=0 but the evaluation renders specular=1"),
+        ({"scene_name": "cornell_box", "eval_max_depth": 4, "specular": 0.0}, r"baked in scene 'furnace'"),
+    ],
+)
+def test_mismatched_evaluation_is_refused(furnace, kwargs, match):
+    _, lf = furnace
+    with pytest.raises(ConfigError, match=match) as e:
+        check_bake_settings(lf, **{"scene_name": "furnace", **kwargs})
+    assert "\n" not in str(e.value)  # one line
+
+
+def test_evaluate_refuses_a_mismatched_bake_before_rendering(furnace):
+    from probeplace.evaluate import EvalConfig, evaluate
+
+    scene, lf = furnace
+    with pytest.raises(ConfigError, match="path depth 3 but evaluation max_depth=8"):
+        evaluate(scene, lf, view="inside", config=EvalConfig(width=4, height=4, max_depth=8))
+
+
+def test_old_file_without_settings_is_refused(furnace, tmp_path):
+    """A file saved before bake settings were recorded still loads (export, inspection) but is refused
+    for evaluation, naming the fix."""
+    _, lf = furnace
+    path = save_probes(tmp_path / "new.npz", lf)
+    with np.load(path) as z:
+        old = {k: z[k] for k in z.files if k not in ("bake_settings", "backface")}
+    np.savez(tmp_path / "old.npz", **old)
+    back = load_probes(tmp_path / "old.npz")
+    assert back.bake is None and back.backface is None
+    with pytest.raises(ConfigError, match=r"predates recorded bake settings.*re-bake"):
+        check_bake_settings(back, scene_name="furnace", eval_max_depth=4)
+
+
+def test_cli_refuses_a_baked_file_of_another_depth(tmp_path, capsys, getkey):
+    """``probeplace evaluate --probes x.npz`` checks the file's settings before rendering anything."""
+    from probeplace.cli import main
+    from probeplace.scene import load_scene
+
+    scene = load_scene("cornell_box")
+    lf = bake_probes(
+        scene,
+        ProbeSet(pos_world=jnp.asarray([[278.0, 400.0, 280.0]], jnp.float32), active=jnp.ones(1, bool)),
+        caster=BruteForceCaster(scene),
+        radiance_fn=_constant_radiance(0.1),
+        key=getkey(),
+        config=BakeConfig(radiance_res=4, irradiance_res=4, moments_res=4, n_sub=1, progress=False),
+    )
+    wrong = eqx.tree_at(
+        lambda m: m.bake,
+        lf,
+        BakeSettings(
+            path_depth=jnp.asarray(3, jnp.int32),
+            spp=jnp.asarray(4, jnp.int32),
+            n_sub=jnp.asarray(1, jnp.int32),
+            radiance_res=jnp.asarray(4, jnp.int32),
+            specular=jnp.asarray(1.0, jnp.float32),
+            key=jnp.zeros(2, jnp.uint32),
+            scene="cornell_box",
+        ),
+    )
+    path = save_probes(tmp_path / "d3.npz", wrong)
+    argv = ["evaluate", "--scene", "cornell_box", "--probes", str(path), "--out", str(tmp_path / "ev")]
+    assert main([*argv, "--max-depth", "8"]) == 2
+    err = capsys.readouterr().err
+    assert "path depth 3 but evaluation max_depth=8 needs 7" in err and err.count("\n") == 1
+    assert not (tmp_path / "ev").exists()
+    # inputs are checked before anything is loaded or baked
+    assert main([*argv, "--max-depth", "2"]) == 2
+    assert "max_depth must be an int ≥ 3" in capsys.readouterr().err
+    assert main([*argv, "--save-baked", str(tmp_path / "x.npz")]) == 2
+    assert "already baked" in capsys.readouterr().err
+
+
+def _quad_scene(z: float = 1.0):
+    """One unit quad in the plane z = ``z`` whose winding makes its geometric normal +Z (a one-sided
+    sheet), no light (the geometry maps need none)."""
+    v = np.array([[-1.0, -1.0, z], [1.0, -1.0, z], [1.0, 1.0, z], [-1.0, 1.0, z]])
+    f = np.array([[0, 1, 2], [0, 2, 3]])
+    mats = make_materials(["sheet"], np.array([[0.5, 0.5, 0.5]]))
+    return build_scene("sheet", v, f, np.zeros(2, int), mats)
+
+
+def test_stored_normal_faces_the_probe_and_backface_is_marked(getkey):
+    """A probe behind a one-sided quad (z < 1, geometric normal +Z) sees its back: the stored normal is
+    flipped to face the probe and every texel that hits the quad is marked ``backface``; a probe in
+    front sees the front: same normal direction toward it, no back face."""
+    scene = _quad_scene()
+    p = jnp.asarray([[0.0, 0.0, 0.0], [0.0, 0.0, 2.0]], jnp.float32)  # behind, in front
+    lf = bake_probes(
+        scene,
+        ProbeSet(pos_world=p, active=jnp.ones(2, bool)),
+        caster=BruteForceCaster(scene),
+        radiance_fn=_constant_radiance(0.0),
+        key=getkey(),
+        config=BakeConfig(radiance_res=16, irradiance_res=4, moments_res=4, n_sub=1, progress=False),
+    )
+    d = np.asarray(texel_directions(16, jnp.float64)).reshape(-1, 3)
+    n = np.asarray(strip_border(lf.normal)).reshape(2, -1, 3)
+    back = np.asarray(lf.backface)[:, 1:-1, 1:-1].reshape(2, -1)
+    hit = np.asarray(strip_border(lf.distance[..., None]))[..., 0].reshape(2, -1) < float(lf.far)
+    assert hit.sum(axis=1).min() > 10
+    for i, expect_back in ((0, True), (1, False)):
+        facing = np.sum(n[i] * -d, axis=-1)
+        assert np.all(facing[hit[i]] > 0), i
+        np.testing.assert_allclose(np.abs(n[i][hit[i], 2]), 1.0, atol=1e-6)  # ±Z, the quad's plane
+        assert np.all(back[i][hit[i]] == expect_back) and not back[i][~hit[i]].any()
+        assert np.all(n[i][~hit[i]] == 0.0)
+    # the bordered maps keep the layout: border texels copy interior ones
+    assert lf.backface.shape == lf.distance.shape and lf.backface.dtype == jnp.bool_
+
+
+def _solid_box_scene(winding: str, *, views=()):
+    """A closed solid box (outward faces when ``winding == "consistent"``; every face flipped; or every
+    other face flipped) standing in open space."""
+    v, f = box((0.0, 0.0, 0.0), (1.0, 1.0, 1.0))
+    if winding == "flipped":
+        f = f[:, ::-1]
+    elif winding == "half":
+        f = np.where((np.arange(len(f)) % 2 == 0)[:, None], f[:, ::-1], f)
+    mats = make_materials(["stone"], np.array([[0.5, 0.5, 0.5]]))
+    return build_scene(f"box_{winding}", v, f, np.zeros(len(f), int), mats, views=views)
+
+
+def _inside_flags(scene, pos, getkey, **cfg):
+    lf = bake_probes(
+        scene,
+        ProbeSet(pos_world=jnp.asarray(pos, jnp.float32), active=jnp.ones(len(pos), bool)),
+        caster=BruteForceCaster(scene),
+        radiance_fn=_constant_radiance(0.0),
+        key=getkey(),
+        config=BakeConfig(radiance_res=8, irradiance_res=4, moments_res=4, n_sub=1, progress=False, **cfg),
+    )
+    return np.asarray(lf.inside).tolist()
+
+
+@pytest.mark.parametrize("winding", ["consistent", "flipped", "half"])
+def test_inside_a_closed_box_whatever_its_winding(winding, getkey):
+    """The reach test reads no winding: inside the box is inside, outside is not, for consistent, fully
+    flipped and half-flipped faces. (The back-face test misses the probe inside the flipped box.)"""
+    scene = _solid_box_scene(winding)
+    pos = [[0.4, 0.55, 0.45], [2.0, 0.5, 0.5], [0.5, 1.6, -0.7]]  # inside, two outside
+    assert _inside_flags(scene, pos, getkey) == [True, False, False]
+    if winding == "flipped":
+        assert _inside_flags(scene, pos, getkey, inside_test="backface") == [False, False, False]
+    assert _inside_flags(scene, pos, getkey, inside_test="none") == [False, False, False]
+
+
+@pytest.mark.parametrize("winding", ["consistent", "half"])
+def test_inside_in_a_closed_room_seen_from_a_camera(room, winding, getkey):
+    """A closed room (single-sheet walls, nothing escapes): the view camera inside seeds free space, so
+    the room's probes are free and the block's probe is inside, with the room's and the block's faces
+    half flipped too. Without a view a closed scene has no free-space seed and the test falls back on
+    the winding (``test_probe_inside_a_solid_is_flagged``)."""
+    v, f = np.asarray(room.vertices), np.asarray(room.faces)
+    if winding == "half":
+        f = np.where((np.arange(len(f)) % 2 == 0)[:, None], f[:, ::-1], f)
+    cam = make_camera((3.5, 1.5, 0.5), (2.0, 1.5, 4.0), 60.0, "view")
+    scene = build_scene("room_view", v, f, np.asarray(room.tri_material), room.materials, views=(cam,))
+    pos = [[1.0, 0.5, 1.0], [3.0, 1.5, 3.0], [0.3, 2.7, 4.7], [3.7, 0.2, 0.3]]  # block, room ×3
+    assert _inside_flags(scene, pos, getkey) == [True, False, False, False]
+
+
+def test_inside_agrees_with_the_winding_where_the_winding_is_right(cornell, getkey):
+    """The Cornell box's winding is consistent, so the back-face test is right there: both tests flag the
+    same probes of a 4×4×4 grid (those in the two blocks)."""
+    lo, hi = (np.asarray(b, np.float64) for b in cornell.bounds)
+    ax = [(np.arange(4) + 0.5) / 4] * 3
+    pos = np.stack(np.meshgrid(*ax, indexing="ij"), -1).reshape(-1, 3) * (hi - lo) + lo
+    reach = _inside_flags(cornell, pos, getkey)
+    back = _inside_flags(cornell, pos, getkey, inside_test="backface")
+    assert reach == back and 0 < sum(reach) < 8
+
+
+def test_experiment_config_has_one_path_depth():
+    """The runner bakes at ``bake_depth_for(tracer.max_depth)``: there is no bake depth to disagree with
+    the evaluation's, and an old config that sets one is refused naming both keys."""
+    import dataclasses
+
+    from probeplace.experiment import to_config
+    from probeplace.experiment._schema import BakeConfig as BakeSchema
+
+    assert "max_depth" not in {f.name for f in dataclasses.fields(BakeSchema)}
+    with pytest.raises(ConfigError, match=r"bake\.max_depth=4: .*tracer\.max_depth − 1"):
+        to_config({"bake": {"max_depth": 4}, "tracer": {"max_depth": 4}})

@@ -494,10 +494,11 @@ CATALOGUE: list[Entry] = [
     Entry(
         "inverted-normals",
         "scene data",
-        "a Cornell box modelled inside-out (every face points away from the probes)",
-        lambda c: bake(c.cornell(inverted=True), [INSIDE_OUT_PROBE]),
+        "a Cornell box modelled inside-out, baked with the winding-based inside_test='backface' (the "
+        "default 'reach' test ignores winding and keeps the probe)",
+        lambda c: bake(c.cornell(inverted=True), [INSIDE_OUT_PROBE], inside_test="backface"),
         None,
-        r"1 of 1 probes are inside geometry \(most first hits are back faces\)",
+        r"1 of 1 probes are inside geometry \(inside_test=backface\)",
     ),
     Entry(
         "no-light-bake",

@@ -55,8 +55,10 @@ memory limit in the messages is this machine's (see *Limits*).
 
 Duplicate probes and probes outside the scene bounds are accepted (with a warning) by `bake_probes`
 and `make_tracer`; `save_probe_set`/`load_probe_set` accept them silently (a probe-set file has no
-scene). Face winding is taken as given: an inside-out model is not repaired, its probes see back faces
-and are flagged `inside` at bake time (logged), and the tracer does not use them.
+scene). Face winding is taken as given for shading (an inside-out model is not repaired), but not for
+probe validity: the default `inside_test="reach"` flags a probe `inside` when it cannot reach the free
+space of the scene's views, which never reads winding, so an inside-out model keeps its probes. The
+winding-based `inside_test="backface"` (kept as an option) flags them, logged at bake time.
 
 Unknown keys: YAML configs (the demo's here, the experiment schema's in `tests/experiment`) are refused
 with a `ConfigError` naming the key; the Python config classes (`RenderConfig`, `BakeConfig`, …) are

@@ -47,16 +47,18 @@ def test_catalogue_entry(entry: Entry, tmp_path: Path, caplog):
     assert "/probeplace/" in raise_site and not any(f in raise_site for f in _FOREIGN), raise_site
 
 
-def test_inverted_cornell_probe_is_flagged_inside(tmp_path):
-    """Documented behaviour of inverted normals: winding is taken as given, so a probe in a box modelled
-    inside-out sees only back faces and is flagged ``inside`` (and the tracer will not use it)."""
+def test_inverted_cornell_probe_inside_test_ignores_winding(tmp_path):
+    """Inverted normals: the default ``reach`` inside test never reads winding, so a probe in a box modelled
+    inside-out is usable exactly as in the correctly wound box; the winding-based ``backface`` test (kept as
+    an option) flags it, since every first hit is a back face."""
     from .catalogue import INSIDE_OUT_PROBE, bake, cornell
 
     pos = [INSIDE_OUT_PROBE]
     lf = bake(cornell(inverted=True), pos)
-    assert bool(lf.inside[0])
     lf_ok = bake(cornell(), pos)
-    assert not bool(lf_ok.inside[0])
+    assert not bool(lf.inside[0]) and not bool(lf_ok.inside[0])
+    assert bool(bake(cornell(inverted=True), pos, inside_test="backface").inside[0])
+    assert not bool(bake(cornell(), pos, inside_test="backface").inside[0])
     # same geometry either way: the distance maps agree exactly
     np.testing.assert_array_equal(np.asarray(lf.distance), np.asarray(lf_ok.distance))
 

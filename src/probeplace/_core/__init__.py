@@ -29,6 +29,8 @@ from ._probe_io import PROBE_SET_FORMAT as PROBE_SET_FORMAT
 from ._probe_io import load_probe_set as load_probe_set
 from ._probe_io import save_probe_set as save_probe_set
 from ._probe_io import write_json_atomic as write_json_atomic
+from ._types import BAKE_SETTINGS_VERSION as BAKE_SETTINGS_VERSION
+from ._types import BakeSettings as BakeSettings
 from ._types import Camera as Camera
 from ._types import Hit as Hit
 from ._types import LightFieldProbes as LightFieldProbes

@@ -6,9 +6,12 @@ units (``Scene.unit_m`` metres per unit). Radiance is linear RGB in W·sr⁻¹·
 
 from __future__ import annotations
 
+import math
+
 import equinox as eqx
 import jax.numpy as jnp
-from jaxtyping import Array, Bool, Float, Int
+import numpy as np
+from jaxtyping import Array, Bool, Float, Int, UInt32
 
 
 def _check_last(name: str, x, tail: tuple[int, ...]) -> None:
@@ -191,27 +194,116 @@ class ProbeSet(eqx.Module):
         return int(jnp.sum(self.active))
 
 
+#: Version of the :class:`BakeSettings` record (bumped when its fields or their meaning change).
+BAKE_SETTINGS_VERSION = 1
+
+
+class BakeSettings(eqx.Module):
+    """How a set of light-field probes was baked: recorded on the probes and in the baked file, checked
+    by the evaluation (``probes.check_bake_settings``).
+
+    Numbers are 0-d array leaves, not static fields, so that probes of runs that differ only in seed or
+    sample counts share one pytree structure (and the compiled shading code that takes them); the names
+    are static.
+
+    Attributes:
+        path_depth: longest path of each texel sample in segments, the probe → surface segment included
+            (``render``'s ``max_depth`` convention). An evaluation whose camera paths have D segments
+            needs ``path_depth = D − 1`` (``probes.bake_depth_for``). −1: the radiance was not path
+            traced (a custom ``radiance_fn``), so there is no depth to check.
+        spp: paths per texel ray (−1 for a custom radiance function).
+        n_sub: jittered rays per texel and axis (``n_sub``² per texel).
+        radiance_res: interior resolution of the radiance maps.
+        specular: the path tracer's dielectric specular factor (``render.RenderConfig.specular``);
+            NaN for a custom radiance function.
+        key: the raw words of the bake's PRNG key (``jax.random.key_data``), for reproduction.
+        scene: name of the scene the probes were baked in (static).
+        radiance: ``"path_traced"`` or ``"custom"`` (static).
+        version: :data:`BAKE_SETTINGS_VERSION` of the record (static).
+    """
+
+    path_depth: Int[Array, ""]
+    spp: Int[Array, ""]
+    n_sub: Int[Array, ""]
+    radiance_res: Int[Array, ""]
+    specular: Float[Array, ""]
+    key: UInt32[Array, " k"]
+    scene: str = eqx.field(static=True)
+    radiance: str = eqx.field(static=True, default="path_traced")
+    version: int = eqx.field(static=True, default=BAKE_SETTINGS_VERSION)
+
+    def __check_init__(self):
+        if self.radiance not in ("path_traced", "custom"):
+            raise ValueError(f"radiance must be 'path_traced' or 'custom', got {self.radiance!r}")
+
+    def to_dict(self) -> dict:
+        """Plain JSON-ready values (the form stored in the baked file and in run metrics)."""
+        return {
+            "version": self.version,
+            "scene": self.scene,
+            "radiance": self.radiance,
+            "path_depth": int(self.path_depth),
+            "spp": int(self.spp),
+            "n_sub": int(self.n_sub),
+            "radiance_res": int(self.radiance_res),
+            "specular": None if math.isnan(float(self.specular)) else float(self.specular),
+            "key": [int(k) for k in np.asarray(self.key).reshape(-1)],
+        }
+
+    @classmethod
+    def from_dict(cls, d: dict) -> BakeSettings:
+        """Inverse of :meth:`to_dict`.
+
+        Raises:
+            KeyError, TypeError, ValueError: a missing or malformed entry.
+        """
+        i32 = lambda k: jnp.asarray(int(d[k]), jnp.int32)
+        spec = d["specular"]
+        return cls(
+            path_depth=i32("path_depth"),
+            spp=i32("spp"),
+            n_sub=i32("n_sub"),
+            radiance_res=i32("radiance_res"),
+            specular=jnp.asarray(math.nan if spec is None else float(spec), jnp.float32),
+            key=jnp.asarray(np.asarray(d["key"], np.uint32).reshape(-1)),
+            scene=str(d["scene"]),
+            radiance=str(d["radiance"]),
+            version=int(d["version"]),
+        )
+
+
 class LightFieldProbes(eqx.Module):
     """Baked light-field probes (McGuire et al. 2017 §3): per probe, octahedral maps (Cigolle et al. 2014)
     *with a one-texel border* on every side so bilinear filtering is right across the octahedral edges
     (Luo 2022 §4.3.5; the DDGI layout). A map of interior resolution R is stored as (R+2)×(R+2).
 
+    Each texel is one *surfel*: the first surface hit by the ray through the texel centre (McGuire §4).
+    What it stores replaces "the rest of the path" from a shading point: light reflected toward the probe
+    along paths of at most ``bake.path_depth`` segments (``probes.bake_depth_for``).
+
     Attributes:
         pos_world: probe centres, world frame.
         active: which probes are real (a ProbeSet's mask).
-        inside: probes detected inside geometry at bake time (most first hits are back faces).
+        inside: probes found inside geometry at bake time: they cannot reach the free space of the
+            scene's views (``probes.BakeConfig.inside_test``); unusable for shading.
         radiance: radiance reflected toward the probe by the first surface hit in each texel's direction
             (direct + indirect, emission excluded: DESIGN.md "indirect means reflected"); zero where the
             ray escapes.
         emission: radiance emitted toward the probe by that surface, or the sky (and sun) radiance where
             the ray escapes: what a camera at the probe would call "emission" (docs/render.md).
-        normal: unit shading normal of that surface (zeros where the ray escapes).
+        normal: unit shading normal of that surface, *oriented toward the probe* (``dot(n, −ω) > 0``
+            for the texel direction ω: the side the probe sees, whatever the triangle's winding); zeros
+            where the ray escapes.
+        backface: True where the probe sees that surface's back side by its geometric normal (winding),
+            so a one-sided sheet seen from behind can still be told; False where the ray escapes.
         distance: radial distance to that surface; ``far`` where the ray escapes.
         irradiance: cosine-convolved irradiance E(n) for a receiver normal n = texel direction.
         moments: cosine-power filtered E[r] and E[r²] (McGuire §5.2), for the Chebyshev visibility test.
         distance_min_mips: min-MIP chain of the interior distance map, level 1 (R/2) … coarsest.
         distance_max_mips: max-MIP chain, same levels (Wang 2019 §4.2 hi-Z uses both bounds).
         far: the distance stored for escaping rays (a finite value beyond the scene).
+        bake: how the probes were baked (:class:`BakeSettings`); ``None`` for probes built by hand or
+            read from a file that predates recorded settings (the evaluation refuses those).
     """
 
     pos_world: Float[Array, "n_probes 3"]
@@ -226,6 +318,8 @@ class LightFieldProbes(eqx.Module):
     distance_min_mips: tuple[Float[Array, "n_probes _ _"], ...]
     distance_max_mips: tuple[Float[Array, "n_probes _ _"], ...]
     far: Float[Array, ""]
+    backface: Bool[Array, "n_probes rb rb"] | None = None
+    bake: BakeSettings | None = None
 
     def __check_init__(self):
         _check_last("pos_world", self.pos_world, (3,))
@@ -233,6 +327,11 @@ class LightFieldProbes(eqx.Module):
             m = getattr(self, name)
             if m.shape[-3 if m.ndim == 4 else -2] != m.shape[-2 if m.ndim == 4 else -1]:
                 raise ValueError(f"{name} maps must be square, got {tuple(m.shape)}")
+        if self.backface is not None and self.backface.shape != self.distance.shape:
+            raise ValueError(
+                f"backface must have the distance map's shape {tuple(self.distance.shape)}, "
+                f"got {tuple(self.backface.shape)}"
+            )
 
     @property
     def radiance_res(self) -> int:

@@ -6,7 +6,7 @@ import argparse
 import json
 from pathlib import Path
 
-from .._core import ProbeplaceError
+from .._core import ConfigError
 
 
 def add_parser(sub) -> None:
@@ -24,7 +24,13 @@ def add_parser(sub) -> None:
     e.add_argument("--height", type=int, default=128)
     e.add_argument("--spp", type=int, default=64, help="reference paths per pixel")
     e.add_argument("--glossy-spp", type=int, default=8, help="GGX directions per pixel (CRN)")
-    e.add_argument("--max-depth", type=int, default=8)
+    e.add_argument(
+        "--max-depth",
+        type=int,
+        default=8,
+        help="camera path depth in segments; a bake from a ProbeSet traces max-depth − 1 "
+        "(probes.bake_depth_for) and a baked .npz must have been baked so",
+    )
     e.add_argument("--hierarchy", default="hiz", choices=["hiz", "two_level", "flat"])
     e.add_argument("--seed", type=int, default=0)
     e.add_argument("--radiance-res", type=int, default=None, help="bake: radiance map resolution")
@@ -36,35 +42,30 @@ def add_parser(sub) -> None:
 def run(args: argparse.Namespace) -> int:
     import jax
 
-    from ..probes import BakeConfig, bake_probes, load_probes, path_traced_radiance, save_probes
+    from .._core import load_probe_set
+    from ..probes import (
+        BakeConfig,
+        bake_depth_for,
+        bake_probes,
+        check_bake_settings,
+        load_probes,
+        path_traced_radiance,
+        save_probes,
+    )
     from ..probes._trace import TraceConfig
     from ..render import default_caster
     from ..scene import load_scene
-    from ._evaluate import EvalConfig, evaluate
-    from ._write import write_evaluation
+    from . import EvalConfig, evaluate, write_evaluation
 
-    scene = load_scene(args.scene)
-    view = args.view or scene.views[0].name
-    caster = default_caster(scene)
+    # ---- every input checked before the scene is loaded and anything is baked or rendered
     path = Path(args.probes)
-    if path.suffix == ".npz":
-        lf = load_probes(path)
-    elif path.suffix == ".json":
-        from .._core import load_probe_set
-
-        probes, _ = load_probe_set(path)
-        lf = bake_probes(
-            scene,
-            probes,
-            caster=caster,
-            radiance_fn=path_traced_radiance(scene, spp=args.bake_spp, caster=caster),
-            key=jax.random.key(args.seed),
-            config=BakeConfig(radiance_res=args.radiance_res, progress=True),
-        )
-        if args.save_baked:
-            save_probes(args.save_baked, lf)
-    else:
-        raise ProbeplaceError(f"--probes must be a ProbeSet .json or a baked .npz, got {path}")
+    if path.suffix not in (".json", ".npz"):
+        raise ConfigError(f"--probes must be a ProbeSet .json or a baked .npz, got {path}")
+    if args.save_baked is not None:
+        if path.suffix != ".json":
+            raise ConfigError(f"--save-baked saves a bake; {path} is already baked (give a ProbeSet .json)")
+        if Path(args.save_baked).suffix != ".npz":
+            raise ConfigError(f"--save-baked must name a .npz file, got {args.save_baked}")
     config = EvalConfig(
         width=args.width,
         height=args.height,
@@ -76,6 +77,36 @@ def run(args: argparse.Namespace) -> int:
         seed=args.seed,
         progress=True,
     )
+    if path.suffix == ".json":
+        bake_cfg = BakeConfig(radiance_res=args.radiance_res, progress=True)
+        if isinstance(args.bake_spp, bool) or args.bake_spp < 1:
+            raise ConfigError(f"--bake-spp must be a positive integer, got {args.bake_spp}")
+        probes, _ = load_probe_set(path)
+
+    scene = load_scene(args.scene)
+    views = [c.name for c in scene.views]
+    if not views:
+        raise ConfigError(f"scene {scene.name!r} has no view to evaluate (add one in its sidecar config)")
+    view = args.view or views[0]
+    if view not in views:
+        raise ConfigError(f"--view: scene {scene.name!r} has no view {view!r}; views: {views}")
+    caster = default_caster(scene)
+    if path.suffix == ".npz":
+        lf = load_probes(path)
+        check_bake_settings(lf, scene_name=scene.name, eval_max_depth=config.max_depth)
+    else:
+        lf = bake_probes(
+            scene,
+            probes,
+            caster=caster,
+            radiance_fn=path_traced_radiance(
+                scene, spp=args.bake_spp, max_depth=bake_depth_for(config.max_depth), caster=caster
+            ),
+            key=jax.random.key(args.seed),
+            config=bake_cfg,
+        )
+        if args.save_baked:
+            save_probes(args.save_baked, lf)
     result = evaluate(scene, lf, view=view, config=config, caster=caster)
     paths = write_evaluation(result, args.out)
     m = result.metrics

@@ -257,7 +257,7 @@ def _execute(cfg: ExperimentConfig, partial: Path, final: Path) -> dict:
     save_top_view(scene, pos, partial / "top_view.png", title=f"{final.name}: {len(pos)} probes")
 
     if cfg.bake.enabled:
-        from ..probes import BakeConfig, bake_probes, path_traced_radiance, save_probes
+        from ..probes import BakeConfig, bake_depth_for, bake_probes, path_traced_radiance, save_probes
         from ..render import default_caster
 
         bar.set_postfix_str("bake")
@@ -267,8 +267,9 @@ def _execute(cfg: ExperimentConfig, partial: Path, final: Path) -> dict:
             scene,
             _padded(probes) if cfg.bake.pad_pow2 else probes,
             caster=caster,
+            # one depth rule for bake, reference and evaluation: a texel replaces the rest of a camera path
             radiance_fn=path_traced_radiance(
-                scene, spp=cfg.bake.spp, max_depth=cfg.bake.max_depth, caster=caster
+                scene, spp=cfg.bake.spp, max_depth=bake_depth_for(cfg.tracer.max_depth), caster=caster
             ),
             key=k_bake,
             config=BakeConfig(
@@ -283,6 +284,7 @@ def _execute(cfg: ExperimentConfig, partial: Path, final: Path) -> dict:
         bar.update()
         save_probes(partial / "probes_baked.npz", lf)
         metrics["inside_bake"] = int((np.asarray(lf.inside) & np.asarray(lf.active)).sum())
+        metrics["bake_settings"] = lf.bake.to_dict()
         # as stored, for the real probes only (padding rows are not part of the method's cost)
         per_probe = _tree_nbytes(lf) / int(lf.pos_world.shape[0])
         metrics["memory"] = {"bytes_per_probe": per_probe, "bytes_total": per_probe * metrics["n_probes"]}
@@ -390,7 +392,7 @@ def unresolved_share(ev: dict) -> float | None:
 
 def failures(m: dict) -> list[str]:
     """Failure cases of the stability study: coverage < 100%, probes inside geometry (negative SDF or
-    the bake's back-face test), unresolved rays > 1%, optimiser not converged (each only when the run
+    the bake's inside test), unresolved rays > 1%, optimiser not converged (each only when the run
     measured it)."""
     out = []
     if m.get("coverage") is not None and m["coverage"] < 1.0 - 1e-9:

@@ -74,19 +74,20 @@ class BakeConfig:
         enabled: bake at all (the stability study only needs placements).
         radiance_res: octahedral interior resolution (power of two).
         spp: paths per bake ray; ``n_sub``² jittered rays per texel.
-        max_depth: path depth of the bake.
         n_sub: jittered rays per texel per axis.
         probes_per_batch: probes traced at once (memory).
         pad_pow2: pad the baked set with inactive probes to a power-of-two capacity (8 to 64; beyond,
             a multiple of 64), so
             the runs of a sweep share compiled bake / shading code; inactive probes are masked out, the
             results do not change.
+
+    The bake's path depth is not a setting of its own: it is ``tracer.max_depth − 1``
+    (``probes.bake_depth_for``), so the probes always match the reference they are compared with.
     """
 
     enabled: bool = True
     radiance_res: int = 16
     spp: int = 4
-    max_depth: int = 4
     n_sub: int = 2
     probes_per_batch: int = 4
     pad_pow2: bool = True
@@ -98,7 +99,8 @@ class TracerConfig:
 
     Attributes:
         spp: paths per pixel.
-        max_depth: path depth.
+        max_depth: camera path depth in segments (reference render and evaluation); the bake traces
+            ``max_depth − 1`` segments from each probe (``probes.bake_depth_for``).
     """
 
     spp: int = 16
@@ -222,7 +224,7 @@ def validate(cfg: ExperimentConfig) -> ExperimentConfig:
     r = b.radiance_res
     if isinstance(r, bool) or not isinstance(r, int) or r < 2 or r & (r - 1):
         _fail("bake.radiance_res", "must be a power of two >= 2", r)
-    for k in ("spp", "max_depth", "n_sub", "probes_per_batch"):
+    for k in ("spp", "n_sub", "probes_per_batch"):
         _pos_int(f"bake.{k}", getattr(b, k))
     _pos_int("tracer.spp", cfg.tracer.spp)
     if (
@@ -268,6 +270,13 @@ def to_config(cfg: Any) -> ExperimentConfig:
     try:
         base = OmegaConf.structured(ExperimentConfig)  # dataclass nodes refuse unknown keys
         node = OmegaConf.create(cfg) if isinstance(cfg, dict) else cfg
+        stale = OmegaConf.select(node, "bake.max_depth") if OmegaConf.is_config(node) else None
+        if stale is not None:
+            raise ConfigError(
+                f"bake.max_depth={stale}: the bake's path depth is no longer "
+                "a setting, it is tracer.max_depth − 1 (probes.bake_depth_for); remove bake.max_depth and "
+                "set tracer.max_depth (a run folder written with it was baked at its own depth: re-run it)"
+            )
         if OmegaConf.is_config(node) and "hydra" in node:
             node = OmegaConf.masked_copy(node, [k for k in node if k != "hydra"])
         merged = OmegaConf.merge(base, node)

@@ -10,9 +10,29 @@ Per probe and interior texel of the radiance map (octahedral, Cigolle 2014; ``_c
   *reflected* toward the probe (stored in ``radiance``); its ``emission`` (emitters and sky seen
   directly) is stored apart (DESIGN.md "indirect means reflected").
 
-A probe is flagged ``inside`` when more than ``inside_backface_share`` of its texel-centre rays first
-hit a back face: from inside a closed solid almost every ray does, from free space only rays that meet a
-one-sided sheet from behind do.
+**Path depth — one definition** (:func:`bake_depth_for`). ``render``'s ``max_depth`` counts path
+segments, the camera ray included. A probe texel replaces "the rest of the path" from a shading point
+x₁: the reference's diffuse and glossy indirect at x₁ are paths x₁ → x₂ → … of at most D − 1 segments
+when the camera paths have D, so a texel stores the radiance reflected toward the probe along paths of
+at most **D − 1** segments (the probe → surface segment counted as the first, like x₁ → x₂). The
+evaluation's CRN glossy reference traces its secondary rays with the same depth. The depth, the
+sample counts, the scene and the key are recorded on the probes (:class:`~probeplace._core.BakeSettings`)
+and checked by :func:`check_bake_settings` when probes are evaluated.
+
+**Surfels are oriented toward the probe**: the stored normal faces the probe whatever the winding,
+and the ``backface`` map keeps which side (by the geometric normal) the probe saw.
+
+**Inside geometry** (``BakeConfig.inside_test``, default ``"reach"``; ``probes._inside``): a probe is
+*inside* when it cannot reach the free space the scene is viewed from — none of its texel-centre rays
+escapes the scene, it sees no view camera nor the free space around one, and no chain of probes whose
+free-space regions meet leads to one that does. This is the exterior flood fill of mesh repair (Ju 2004,
+"Robust repair of polygonal models": inside/outside from reachability, which holds for open,
+non-manifold and inconsistently oriented input), run on the probes' own rays with the views and the sky
+as seeds. It never reads triangle winding. On 8×4×4 grids it flags exactly the probes the back-face test
+flags where the winding is consistent (Cornell box 9, rooms 25, temple 16, courtyard 0 of 128). Ray
+parity (Nooruddin & Turk 2003) was measured and rejected: it needs closed solids, and single-sheet walls
+(the Cornell box's) make a room's interior "odd" — 84 of 128 probes of that grid had an odd crossing
+count in more than 3/4 of 26 directions.
 """
 
 from __future__ import annotations
@@ -29,6 +49,8 @@ from jaxtyping import Array, Float
 from tqdm.auto import tqdm
 
 from .._core import (
+    BAKE_SETTINGS_VERSION,
+    BakeSettings,
     ConfigError,
     LightFieldProbes,
     ProbeSet,
@@ -40,6 +62,7 @@ from .._core import (
 )
 from .._core._errors import check_memory
 from ._filter import distance_moments, irradiance_map, mip_chains
+from ._inside import probes_inside
 
 log = logging.getLogger(__name__)
 
@@ -48,46 +71,99 @@ log = logging.getLogger(__name__)
 RadianceFn = Callable[[Float[Array, "n 3"], Float[Array, "n 3"], jax.Array], tuple[Array, Array]]
 
 
+#: Camera path depth of the evaluation when none is given (``evaluate.EvalConfig.max_depth``'s default);
+#: :func:`path_traced_radiance`'s default depth is :func:`bake_depth_for` of it.
+DEFAULT_EVAL_MAX_DEPTH = 8
+
+
+def bake_depth_for(eval_max_depth: int) -> int:
+    """The path depth a bake must use for an evaluation (or reference render) whose camera paths have
+    ``eval_max_depth`` segments: ``eval_max_depth − 1`` (module docstring, "Path depth").
+
+    A probe texel stands for the rest of a camera path after its first bounce, so its paths have one
+    segment fewer; the evaluation's CRN glossy reference traces its secondary rays with this depth too.
+
+    Raises:
+        ConfigError: ``eval_max_depth`` is not an int ≥ 2 (a texel path needs a segment).
+    """
+    if (
+        isinstance(eval_max_depth, bool)
+        or not isinstance(eval_max_depth, int | np.integer)
+        or eval_max_depth < 2
+    ):
+        raise ConfigError(f"eval max_depth must be an int ≥ 2 for a probe bake, got {eval_max_depth!r}")
+    return int(eval_max_depth) - 1
+
+
+@dataclasses.dataclass(frozen=True, eq=False)
+class PathTracedRadiance:
+    """The reference path tracer as a :data:`RadianceFn` (built by :func:`path_traced_radiance`); its
+    settings are read by :func:`bake_probes` into the probes' :class:`~probeplace._core.BakeSettings`."""
+
+    scene: Scene
+    spp: int
+    max_depth: int
+    specular: float
+    caster: object = None
+
+    def __call__(self, origins, directions, key):
+        from ..render import trace_rays
+
+        r = trace_rays(
+            self.scene,
+            origins,
+            directions,
+            spp=self.spp,
+            key=key,
+            max_depth=self.max_depth,
+            specular=self.specular,
+            caster=self.caster,
+        )
+        emitted = r.component("emission")
+        return r.component("full") - emitted, emitted
+
+
 def path_traced_radiance(
     scene: Scene,
     *,
     spp: int = 16,
-    max_depth: int = 8,
+    max_depth: int = bake_depth_for(DEFAULT_EVAL_MAX_DEPTH),
     specular: float = 1.0,
     caster=None,
-) -> RadianceFn:
+) -> PathTracedRadiance:
     """The reference path tracer as a :data:`RadianceFn`: ``render.trace_rays`` split into reflected
     (direct + diffuse indirect + glossy indirect) and emitted (emission, sky) radiance.
 
     ``spp`` paths per ray; with ``n_sub``² jittered rays per texel a texel averages ``spp·n_sub²`` paths.
     Each call uses a fresh random stream from its key, so batches are independent.
 
+    Args:
+        scene: the scene.
+        spp: paths per ray.
+        max_depth: path segments per texel sample, the probe → surface segment included. Pass
+            ``bake_depth_for(D)`` for an evaluation with camera depth D (the default is that of
+            :data:`DEFAULT_EVAL_MAX_DEPTH`); a mismatch is refused when the probes are evaluated.
+        specular: dielectric specular factor (``render.RenderConfig.specular``; the evaluation uses 1).
+        caster: ray caster (default ``render.default_caster``).
+
     Raises:
         SceneError: the scene has no light (every baked map would be black).
+        ConfigError: ``spp`` or ``max_depth`` not a positive int, ``specular`` outside [0, 1].
     """
-    from ..render import trace_rays
-
     if not scene.has_light:
         raise SceneError(
             f"scene {scene.name!r} has no light (no emissive material, sun or sky): path-traced probe "
             "radiance would be all black; add a light"
         )
+    for name, v in (("spp", spp), ("max_depth", max_depth)):
+        if isinstance(v, bool) or not isinstance(v, int | np.integer) or v < 1:
+            raise ConfigError(f"path_traced_radiance: {name} must be a positive int, got {v!r}")
+    if not 0.0 <= float(specular) <= 1.0:
+        raise ConfigError(f"path_traced_radiance: specular must be in [0, 1], got {specular!r}")
+    return PathTracedRadiance(scene, int(spp), int(max_depth), float(specular), caster)
 
-    def fn(origins, directions, key):
-        r = trace_rays(
-            scene,
-            origins,
-            directions,
-            spp=spp,
-            key=key,
-            max_depth=max_depth,
-            specular=specular,
-            caster=caster,
-        )
-        emitted = r.component("emission")
-        return r.component("full") - emitted, emitted
 
-    return fn
+INSIDE_TESTS = ("reach", "backface", "none")
 
 
 def _is_pow2(n: int) -> bool:
@@ -107,7 +183,15 @@ class BakeConfig:
         n_sub: ``n_sub``² jittered rays per radiance texel.
         moment_power: exponent p of the cosine-power lobe for the moments (McGuire §5.2 gives no value;
             DDGI's reference implementation filters distance with a sharp lobe, we default to 50).
-        inside_backface_share: a probe whose share of back-face first hits exceeds this is ``inside``.
+        inside_test: how ``inside`` is decided: ``"reach"`` (default; winding-independent: the probe
+            cannot reach the views' free space, :func:`probes_inside`), ``"backface"`` (more than
+            ``inside_backface_share`` of the texel-centre rays first hit a back face: needs consistent
+            winding) or ``"none"`` (no probe is inside).
+        inside_neighbours: probes each probe tests for a line of sight in the ``"reach"`` test (its
+            nearest ones; all pairs when there are fewer).
+        inside_backface_share: the ``"backface"`` threshold; also the ``"reach"`` test's fallback when no
+            probe escapes the scene or sees a view camera (a closed scene without views: then nothing
+            but the winding tells a room from a solid).
         probes_per_batch: probes traced at once (memory ≈ probes × res² × n_sub² × 200 bytes).
         quality: scales the derived radiance resolution.
         progress: show a progress bar.
@@ -118,6 +202,8 @@ class BakeConfig:
     moments_res: int = 16
     n_sub: int = 2
     moment_power: float = 50.0
+    inside_test: str = "reach"
+    inside_neighbours: int = 16
     inside_backface_share: float = 0.5
     probes_per_batch: int = 8
     quality: float = 1.0
@@ -128,12 +214,16 @@ class BakeConfig:
             raise ConfigError(
                 f"BakeConfig.radiance_res must be a power of two ≥ 2, got {self.radiance_res!r}"
             )
-        for name in ("irradiance_res", "moments_res", "n_sub", "probes_per_batch"):
+        for name in ("irradiance_res", "moments_res", "n_sub", "probes_per_batch", "inside_neighbours"):
             v = getattr(self, name)
             if not isinstance(v, int) or isinstance(v, bool) or v < 1:
                 raise ConfigError(f"BakeConfig.{name} must be a positive int, got {v!r}")
         if not (self.moment_power > 0 and math.isfinite(self.moment_power)):
             raise ConfigError(f"BakeConfig.moment_power must be positive, got {self.moment_power!r}")
+        if self.inside_test not in INSIDE_TESTS:
+            raise ConfigError(
+                f"BakeConfig.inside_test must be one of {INSIDE_TESTS}, got {self.inside_test!r}"
+            )
         if not 0.0 < self.inside_backface_share < 1.0:
             raise ConfigError(
                 f"BakeConfig.inside_backface_share must be in (0, 1), got {self.inside_backface_share!r}"
@@ -187,10 +277,18 @@ def _bake_batch(
     hit = caster.closest_hit(origins, centre_dirs)
     is_hit = np.asarray(hit.tri) >= 0
     t = np.asarray(hit.t)
+    d = np.asarray(centre_dirs)
     distance = np.where(is_hit, t, far).reshape(b, res, res)
-    normal = np.where(is_hit[:, None], np.asarray(hit.shading_normal), 0.0).reshape(b, res, res, 3)
-    facing = np.sum(np.asarray(hit.geo_normal) * np.asarray(centre_dirs), axis=-1)
-    backface = (is_hit & (facing > 0)).reshape(b, res * res).mean(axis=1)
+    ng = np.asarray(hit.geo_normal)
+    ns = np.asarray(hit.shading_normal)
+    # The side the probe sees (the renderer's rule: the geometric normal decides), then the shading
+    # normal on that side; where interpolation bends it past the ray (grazing texels) the geometric one.
+    back = is_hit & (np.sum(ng * d, axis=-1) > 0)
+    side = np.where(back, -1.0, 1.0)[:, None]
+    n_or = ns * side
+    n_or = np.where((np.sum(n_or * d, axis=-1) < 0)[:, None], n_or, ng * side)
+    normal = np.where(is_hit[:, None], n_or, 0.0).reshape(b, res, res, 3)
+    backface = back.reshape(b, res, res)
 
     k_dir, k_rad = jax.random.split(key)
     sub = n_sub * n_sub
@@ -215,16 +313,19 @@ def bake_probes(
     """Bake every probe of ``probes`` (inactive rows too, so shapes stay fixed; they are masked later).
 
     Args:
-        scene: the scene (for the far distance and the derived resolution).
+        scene: the scene (for the far distance, the derived resolution and the views).
         probes: probe positions, world frame.
-        caster: an exact ray caster (``geometry.make_caster``) for the texel-centre geometry rays.
+        caster: an exact ray caster (``geometry.make_caster``) for the texel-centre geometry rays and the
+            inside test.
         radiance_fn: path-traced radiance along rays, split into (reflected, emitted); see
-            :data:`RadianceFn` and ``render.probe_radiance_fn``.
+            :data:`RadianceFn` and :func:`path_traced_radiance` (whose depth, spp and specular factor are
+            recorded in the probes' :class:`~probeplace._core.BakeSettings`; any other function is
+            recorded as ``"custom"``).
         key: PRNG key for jitter and path sampling.
-        config: resolutions and filters.
+        config: resolutions, filters and the inside test.
 
     Returns:
-        The baked :class:`LightFieldProbes`; float32, maps with one-texel borders.
+        The baked :class:`LightFieldProbes`; float32, maps with one-texel borders, ``bake`` settings set.
 
     Raises:
         ConfigError: bad probe positions (NaN/inf), empty set or configuration.
@@ -264,9 +365,11 @@ def bake_probes(
         bar.update(min(bsz, n - start))
     bar.close()
     radiance, emission, normal, distance, backface = (np.concatenate(x) for x in zip(*parts, strict=True))
-    inside = backface > config.inside_backface_share
+    inside = _inside(scene, pos, res, np.where(distance < far, distance, np.inf), backface, caster, config)
     if inside.any():
-        log.warning("%d of %d probes are inside geometry (most first hits are back faces)", inside.sum(), n)
+        log.warning(
+            "%d of %d probes are inside geometry (inside_test=%s)", inside.sum(), n, config.inside_test
+        )
 
     f32 = lambda x: jnp.asarray(x, jnp.float32)
     irr = irradiance_map(f32(radiance), config.irradiance_res)
@@ -285,4 +388,105 @@ def bake_probes(
         distance_min_mips=mins,
         distance_max_mips=maxs,
         far=jnp.float32(far),
+        backface=add_border(f32(backface)[..., None])[..., 0] > 0.5,
+        bake=_settings(scene, radiance_fn, res, config.n_sub, key),
     )
+
+
+def _inside(scene, pos, res: int, hit_t, backface, caster, config: BakeConfig) -> np.ndarray:
+    """The ``inside`` flags by ``config.inside_test`` (see :class:`BakeConfig`); ``hit_t`` is the
+    (n, res, res) texel-centre hit distance, ``inf`` where the ray escapes."""
+    if config.inside_test == "none":
+        return np.zeros(len(pos), bool)
+    if config.inside_test == "reach":
+        cams = np.asarray([np.asarray(c.position, np.float64) for c in scene.views]).reshape(-1, 3)
+        dirs = np.asarray(texel_directions(res), np.float64).reshape(-1, 3)
+        inside = probes_inside(
+            pos, dirs, hit_t.reshape(len(pos), -1), cams, caster, neighbours=config.inside_neighbours
+        )
+        if inside is not None:
+            return inside
+        log.warning(
+            "inside test: no probe escapes the scene or sees a view camera (a closed scene without "
+            "views?), so nothing tells free space from solid; falling back to the back-face test, "
+            "which trusts the triangles' winding"
+        )
+    share = backface.reshape(len(pos), -1).mean(axis=1)
+    return share > config.inside_backface_share
+
+
+def _settings(scene: Scene, radiance_fn, res: int, n_sub: int, key) -> BakeSettings:
+    i32 = lambda v: jnp.asarray(v, jnp.int32)
+    k = jnp.asarray(key)
+    words = jax.random.key_data(k) if jnp.issubdtype(k.dtype, jax.dtypes.prng_key) else k
+    common = dict(n_sub=i32(n_sub), radiance_res=i32(res), key=jnp.asarray(words, jnp.uint32).reshape(-1))
+    if isinstance(radiance_fn, PathTracedRadiance):
+        return BakeSettings(
+            path_depth=i32(radiance_fn.max_depth),
+            spp=i32(radiance_fn.spp),
+            specular=jnp.asarray(radiance_fn.specular, jnp.float32),
+            scene=scene.name,
+            radiance="path_traced",
+            **common,
+        )
+    return BakeSettings(
+        path_depth=i32(-1),
+        spp=i32(-1),
+        specular=jnp.asarray(jnp.nan, jnp.float32),
+        scene=scene.name,
+        radiance="custom",
+        **common,
+    )
+
+
+def check_bake_settings(
+    lf: LightFieldProbes, *, scene_name: str, eval_max_depth: int, specular: float = 1.0
+) -> None:
+    """Refuse probes whose bake does not match the evaluation they are about to be used in.
+
+    Checks, in order: the probes carry settings (files saved before settings were recorded, and probes
+    built by hand, do not), the scene name, the path depth (:func:`bake_depth_for`), the specular factor.
+    Probes baked with a custom radiance function have no depth or specular factor to check.
+
+    Args:
+        lf: the probes.
+        scene_name: the evaluated scene's name.
+        eval_max_depth: the evaluation's camera path depth D (segments).
+        specular: the evaluation's dielectric specular factor (the evaluation renders with 1).
+
+    Raises:
+        ConfigError: a mismatch or missing settings; one line naming both values and the fix.
+    """
+    b = lf.bake
+    if b is None:
+        raise ConfigError(
+            "the probes carry no bake settings: the file predates recorded bake settings (or the probes were "
+            "built by hand), so their path depth is unknown; re-bake them (probeplace evaluate --probes "
+            "<ProbeSet .json> --save-baked <file.npz>, or probes.bake_probes)"
+        )
+    if b.version > BAKE_SETTINGS_VERSION:
+        raise ConfigError(
+            f"the probes' bake settings are version {b.version}, newer than this probeplace reads "
+            f"({BAKE_SETTINGS_VERSION}); update probeplace"
+        )
+    if b.scene != scene_name:
+        raise ConfigError(
+            f"the probes were baked in scene {b.scene!r} but are evaluated in {scene_name!r}; evaluate them "
+            f"in {b.scene!r} or bake the probe set in {scene_name!r}"
+        )
+    if b.radiance != "path_traced":
+        return
+    want = bake_depth_for(eval_max_depth)
+    got = int(b.path_depth)
+    if got != want:
+        raise ConfigError(
+            f"the probes were baked with path depth {got} but evaluation max_depth={eval_max_depth} needs "
+            f"{want} (= max_depth − 1: a texel replaces the rest of a camera path); re-bake with "
+            f"--max-depth {eval_max_depth} (experiment: tracer.max_depth) or evaluate with "
+            f"--max-depth {got + 1}"
+        )
+    if not math.isclose(float(b.specular), float(specular), abs_tol=1e-6):
+        raise ConfigError(
+            f"the probes were baked with specular={float(b.specular):g} but the evaluation renders "
+            f"specular={float(specular):g}; re-bake with path_traced_radiance(specular={float(specular):g})"
+        )

@@ -1,7 +1,14 @@
-"""Save and load baked probes as one ``.npz`` (lossless: every leaf is stored with its dtype)."""
+"""Save and load baked probes as one ``.npz`` (lossless: every leaf is stored with its dtype).
+
+Beside the maps, the file holds the ``backface`` map and the bake settings
+(:class:`~probeplace._core.BakeSettings`, as a JSON string under ``bake_settings``). Files written before
+those existed still load: ``backface`` and ``bake`` are then ``None``, and the evaluation refuses the
+probes (``probes.check_bake_settings``) until they are re-baked.
+"""
 
 from __future__ import annotations
 
+import json
 import os
 import tempfile
 import zipfile
@@ -10,9 +17,9 @@ from pathlib import Path
 import jax.numpy as jnp
 import numpy as np
 
-from .._core import LightFieldProbes, ProbeplaceError
+from .._core import BakeSettings, LightFieldProbes, ProbeplaceError
 
-_FORMAT = "probeplace.LightFieldProbes/1"
+_FORMAT = "probeplace.LightFieldProbes/1"  # the maps' layout; export._data reads the same tag
 _MAPS = (
     "pos_world",
     "active",
@@ -35,6 +42,10 @@ def save_probes(path: str | os.PathLike, probes: LightFieldProbes) -> Path:
         arrays[f"distance_max_mip{i + 1}"] = np.asarray(hi)
     arrays["far"] = np.asarray(probes.far)
     arrays["format"] = np.asarray(_FORMAT)
+    if probes.backface is not None:
+        arrays["backface"] = np.asarray(probes.backface)
+    if probes.bake is not None:
+        arrays["bake_settings"] = np.asarray(json.dumps(probes.bake.to_dict()))
     path.parent.mkdir(parents=True, exist_ok=True)
     fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.", suffix=".tmp")
     try:
@@ -51,7 +62,7 @@ def load_probes(path: str | os.PathLike) -> LightFieldProbes:
     """Read probes written by :func:`save_probes`.
 
     Raises:
-        ProbeplaceError: missing file, not an npz, or not a probe file.
+        ProbeplaceError: missing file, not an npz, not a probe file, or unreadable bake settings.
     """
     path = Path(path)
     if not path.is_file():
@@ -66,10 +77,18 @@ def load_probes(path: str | os.PathLike) -> LightFieldProbes:
     missing = [k for k in (*_MAPS, "far") if k not in data]
     if missing:
         raise ProbeplaceError(f"{path}: probe file lacks {missing}")
+    bake = None
+    if "bake_settings" in data:
+        try:
+            bake = BakeSettings.from_dict(json.loads(str(data["bake_settings"])))
+        except (json.JSONDecodeError, KeyError, TypeError, ValueError) as e:
+            raise ProbeplaceError(f"{path}: unreadable bake settings ({type(e).__name__}: {e})") from None
     n_mips = sum(1 for k in data if k.startswith("distance_min_mip"))
     return LightFieldProbes(
         **{k: jnp.asarray(data[k]) for k in _MAPS},
         distance_min_mips=tuple(jnp.asarray(data[f"distance_min_mip{i + 1}"]) for i in range(n_mips)),
         distance_max_mips=tuple(jnp.asarray(data[f"distance_max_mip{i + 1}"]) for i in range(n_mips)),
         far=jnp.asarray(data["far"]),
+        backface=jnp.asarray(data["backface"]) if "backface" in data else None,
+        bake=bake,
     )
