@@ -3,7 +3,11 @@
 Oracles: invariants of the metrics (finite MSEs, positive noise floors, memory adds up, unresolved share
 a fraction), the images' defining relations (full = emission + direct + diffuse + glossy; error = |probe −
 reference|) and the purpose of common random numbers: the glossy MSE against the CRN reference is below
-the MSE of the same probe image against an independent reference render.
+the MSE of the same probe image against an independent reference render. The error taken apart
+(``_decompose.py``): on a hand-made case and on the real run the per-status terms add up to the glossy
+MSE, the trace's share and the perfect-trace MSE add up to it, the resolved-only MSE is the MSE with the
+unresolved rays given the reference radiance, and the bootstrap interval is deterministic and contains
+the MSE.
 """
 
 from __future__ import annotations
@@ -16,7 +20,15 @@ import numpy as np
 import pytest
 
 from probeplace._core import ConfigError, ProbeSet
-from probeplace.evaluate import EvalConfig, evaluate, write_evaluation
+from probeplace.evaluate import (
+    EvalConfig,
+    bootstrap_ci,
+    evaluate,
+    glossy_terms,
+    hit_agreement,
+    relative_mse,
+    write_evaluation,
+)
 from probeplace.geometry import BruteForceCaster
 from probeplace.probes import BakeConfig, bake_probes, path_traced_radiance
 from probeplace.scene import load_scene
@@ -38,6 +50,20 @@ KEYS = (
     "width",
     "height",
     "shading",
+    "mse_glossy_perfect_trace",
+    "mse_glossy_trace_share",
+    "trace_excess",
+    "mse_glossy_by_status",
+    "mse_glossy_resolved_only",
+    "glossy_hit_agreement",
+    "perfect_trace_fallbacks",
+    "relmse_glossy_indirect",
+    "relmse_diffuse_indirect",
+    "relmse_full",
+    "ci95_mse_glossy_indirect",
+    "ci95_mse_glossy_perfect_trace",
+    "ci95_mse_diffuse_indirect",
+    "ci95_mse_full",
 )
 
 
@@ -134,6 +160,89 @@ def test_bad_config_and_view(cornell_eval):
         EvalConfig(max_depth=2)
     with pytest.raises(ConfigError):
         evaluate(scene, lf, view="nowhere", config=EvalConfig(width=4, height=4), caster=caster)
+
+
+def _synthetic_samples(n_px=50, spp=4, seed=0):
+    rng = np.random.default_rng(seed)
+    n = n_px * spp
+    w = rng.uniform(0.0, 1.0, (n, 3)) * (rng.uniform(size=(n, 1)) > 0.1)  # some samples without a ray
+    l_ref = rng.exponential(1.0, (n, 3))
+    l_probe = l_ref + rng.normal(0.0, 0.3, (n, 3))
+    l_perfect = l_ref + rng.normal(0.0, 0.1, (n, 3))
+    status = rng.choice([0, 1, 2], n, p=[0.2, 0.7, 0.1])
+    return w, l_probe, l_ref, l_perfect, status, spp
+
+
+def test_glossy_terms_add_up_on_a_synthetic_case():
+    w, lp, lr, lq, st, spp = _synthetic_samples()
+    t = glossy_terms(w, lp, lr, lq, st, spp)
+    img = lambda rad: (w * rad).reshape(-1, spp, 3).mean(axis=1)
+    assert t["mse"] == pytest.approx(np.mean((img(lp) - img(lr)) ** 2), rel=1e-12)
+    assert t["mse_perfect_trace"] == pytest.approx(np.mean((img(lq) - img(lr)) ** 2), rel=1e-12)
+    assert sum(t["by_status"].values()) == pytest.approx(t["mse"], rel=1e-12)
+    assert t["trace_share"] + t["mse_perfect_trace"] == pytest.approx(t["mse"], rel=1e-12)
+    assert t["trace_excess"] == pytest.approx(t["mse"] / t["mse_perfect_trace"] - 1, rel=1e-12)
+    # resolved only = the image whose unresolved rays carry the reference radiance
+    lp_res = np.where((st == 2)[:, None], lr, lp)
+    assert t["resolved_only"] == pytest.approx(np.mean((img(lp_res) - img(lr)) ** 2), rel=1e-12)
+    assert np.mean(t["sq_px"]) == pytest.approx(t["mse"], rel=1e-12)
+    # By hand: one pixel, two samples with errors a and b (w = 1, S = 2): MSE = ((a + b)/2)², the hit
+    # sample is charged (a/2)·(a + b)/2 and the unresolved one (b/2)·(a + b)/2.
+    a, b = 0.4, -0.1
+    one = np.ones((2, 3))
+    t1 = glossy_terms(one, np.array([[a] * 3, [b] * 3]), 0 * one, 0 * one, np.array([1, 2]), 2)
+    assert t1["mse"] == pytest.approx(((a + b) / 2) ** 2)
+    assert t1["by_status"]["hit"] == pytest.approx(a / 2 * (a + b) / 2)
+    assert t1["by_status"]["unresolved"] == pytest.approx(b / 2 * (a + b) / 2)
+    assert t1["by_status"]["miss"] == 0.0 and t1["trace_excess"] is None
+
+
+def test_bootstrap_relmse_and_agreement():
+    rng = np.random.default_rng(1)
+    v = rng.pareto(1.5, 4000)  # heavy-tailed per-pixel squared errors
+    ci = bootstrap_ci(v, n_resamples=500, seed=0)
+    assert ci[0] <= v.mean() <= ci[1]
+    assert ci == bootstrap_ci(v, n_resamples=500, seed=0)  # deterministic
+    assert ci != bootstrap_ci(v, n_resamples=500, seed=1)
+    # relative MSE: scale-invariant (ε is relative to the reference's mean luminance) and 0 when equal
+    p, r = rng.uniform(0, 1, (8, 8, 3)), rng.uniform(0, 1, (8, 8, 3))
+    assert relative_mse(7.0 * p, 7.0 * r) == pytest.approx(relative_mse(p, r), rel=1e-12)
+    assert relative_mse(r, r) == 0.0 and relative_mse(p, 0 * r) is None
+    lum = lambda x: x @ np.array([0.2126, 0.7152, 0.0722])
+    eps = 0.01 * np.mean(lum(r)) ** 2
+    assert relative_mse(p, r) == pytest.approx(np.mean((lum(p) - lum(r)) ** 2 / (lum(r) ** 2 + eps)))
+    # agreement over RAY_HIT rays only; an exact miss disagrees
+    st = np.array([1, 1, 1, 1, 0, 2])
+    t_lf = np.array([1.0, 2.0, 3.0, 4.0, np.inf, 1.0])
+    t_ex = np.array([1.01, 2.2, np.inf, 4.0, 5.0, 1.0])
+    assert hit_agreement(t_lf, t_ex, st, rtol=0.02) == (0.5, 4)
+    assert hit_agreement(t_lf, t_ex, np.zeros(6, int)) == (None, 0)
+
+
+def test_decomposition_adds_up_on_the_real_run(cornell_eval):
+    m, im = cornell_eval[3].metrics, cornell_eval[3].images
+    mse = m["mse_glossy_indirect"]
+    assert sum(m["mse_glossy_by_status"].values()) == pytest.approx(mse, rel=1e-9)
+    assert m["mse_glossy_trace_share"] + m["mse_glossy_perfect_trace"] == pytest.approx(mse, rel=1e-12)
+    assert m["trace_excess"] == pytest.approx(mse / m["mse_glossy_perfect_trace"] - 1, rel=1e-9)
+    assert 0 <= m["mse_glossy_resolved_only"] and 0 <= m["mse_glossy_perfect_trace"]
+    assert sum(m["glossy_status_share"].values()) == pytest.approx(1.0)
+    assert m["glossy_status_share"]["unresolved"] == m["unresolved_share"]
+    assert m["glossy_hit_agreement"] is None or 0 <= m["glossy_hit_agreement"] <= 1
+    assert 0 <= m["perfect_trace_fallback_share"] <= 1
+    # the perfect-trace image is the one its MSE is taken of (float32 image: rel 1e-4)
+    pt = np.asarray(im["perfect_trace_glossy_indirect"], np.float64)
+    ref = np.asarray(im["ref_glossy_indirect"], np.float64)
+    assert m["mse_glossy_perfect_trace"] == pytest.approx(np.mean((pt - ref) ** 2), rel=1e-4)
+    for k in ("glossy_indirect", "glossy_perfect_trace", "diffuse_indirect", "full"):
+        lo, hi = m[f"ci95_mse_{k}"]
+        assert lo <= m[f"mse_{k}"] <= hi, k
+    for k in ("relmse_glossy_indirect", "relmse_diffuse_indirect", "relmse_full"):
+        assert m[k] is None or (np.isfinite(m[k]) and m[k] >= 0), k
+    # bootstrap over the same pixels with the same seed: the same interval
+    err = np.asarray(im["error_diffuse_indirect"], np.float64)
+    ci = bootstrap_ci(np.mean(err**2, axis=-1), n_resamples=m["bootstrap_resamples"], seed=0)
+    np.testing.assert_allclose(ci, m["ci95_mse_diffuse_indirect"], rtol=1e-4)  # float32 error image
 
 
 @pytest.mark.slow

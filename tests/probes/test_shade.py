@@ -6,7 +6,11 @@ radiance a + b·ω_y, whose L2 irradiance is exactly πa + (2π/3)·b·n_y (R&H 
 linear function, and the cosine convolution of it is that closed form); (3) the Chebyshev weight's
 closed form; (4) glossy probe radiance vs the exact hit: the probes are baked with a "position colour"
 (reflected radiance = the hit point's normalised coordinates), so a ray read from the probes must carry
-the colour of the point the exact caster hits, within a texel's footprint.
+the colour of the point the exact caster hits, within a texel's footprint; (5) filtered reads: the
+radiance MIP chain keeps ∫ L dω at every level and a consistent octahedral border, a read with a cone
+wider than the sphere returns the sphere's mean, without a cone it is the bilinear read, and on the
+position colour the bilinear read beats the one-texel read and the perfect trace (exact hit, probe that
+sees it) reads the right colour.
 """
 
 from __future__ import annotations
@@ -17,22 +21,36 @@ import jax.numpy as jnp
 import numpy as np
 import pytest
 
-from probeplace._core import ConfigError, LightFieldProbes, ProbeSet, add_border, texel_directions
+from probeplace._core import (
+    ConfigError,
+    LightFieldProbes,
+    ProbeSet,
+    add_border,
+    sample_bilinear,
+    sample_nearest,
+    strip_border,
+    texel_directions,
+    texel_solid_angles,
+)
 from probeplace.geometry import BruteForceCaster
 from probeplace.probes import (
     BakeConfig,
     bake_probes,
     diffuse_irradiance,
     glossy_radiance,
+    glossy_trace,
     make_tracer,
+    perfect_trace_radiance,
+    radiance_mips,
     sh_coefficients,
     sh_irradiance,
     shade_irradiance,
 )
 from probeplace.probes._shade import _chebyshev
-from probeplace.probes._trace import RAY_HIT, RAY_UNRESOLVED
+from probeplace.probes._trace import RAY_HIT, RAY_UNRESOLVED, trace_light_field
 from probeplace.scene import build_scene, load_scene, make_materials
 from probeplace.scene._primitives import box
+from tests.geometry.raycast_reference import ray_triangle_t
 
 ROOM_HI = np.array([4.0, 3.0, 5.0])
 L_CONST = 0.7
@@ -46,6 +64,24 @@ def _grid(lo, hi, dims):
 
 def _unit(v):
     return v / np.linalg.norm(v, axis=-1, keepdims=True)
+
+
+def _in_front_of_a_surface(scene, o, d):
+    """Rays whose origin is in free space as judged looking back along -d: every triangle the back ray
+    meets first (float64, up to coplanar ties) faces the origin. Machine-independent: it never depends on
+    which of two tied triangles a caster reports (the Cornell blocks stand on the floor with coplanar
+    faces, where a caster's pick would decide whether a ray starting inside a block is kept)."""
+    tris = np.asarray(scene.vertices, np.float64)[np.asarray(scene.faces)]
+    n_t = len(tris)
+    o64, back = np.asarray(o, np.float64), -np.asarray(d, np.float64)
+    t = ray_triangle_t(
+        np.tile(tris, (len(o64), 1, 1)), np.repeat(o64, n_t, 0), np.repeat(back, n_t, 0)
+    ).reshape(len(o64), n_t)
+    t_first = t.min(axis=1, keepdims=True)
+    first = np.isfinite(t) & (t <= t_first + 1e-6 * np.maximum(1.0, t_first))  # the first hit and its ties
+    ng = np.cross(tris[:, 1] - tris[:, 0], tris[:, 2] - tris[:, 0])
+    faces_origin = (back @ ng.T) < 0  # geometric normal against the back ray: seen from the front
+    return np.isfinite(t_first[:, 0]) & np.all(~first | faces_origin, axis=1)
 
 
 def _synthetic_lf(pos, res=16, far=20.0):
@@ -199,9 +235,7 @@ def test_glossy_radiance_matches_exact_hit(cornell_position_colour):
     o = rng.uniform(lo + 0.05 * (hi - lo), hi - 0.05 * (hi - lo), (3 * n, 3))
     d = _unit(rng.normal(size=(3 * n, 3)))
     o32, d32 = jnp.asarray(o, jnp.float32), jnp.asarray(d, jnp.float32)
-    back = caster.closest_hit(o32, -d32)
-    free = np.asarray(back.tri) >= 0
-    free &= np.sum(np.asarray(back.geo_normal) * (-d), axis=1) < 0  # the point is in front of a surface
+    free = _in_front_of_a_surface(scene, o, d)
     o32, d32 = o32[np.flatnonzero(free)[:n]], d32[np.flatnonzero(free)[:n]]
     tr = make_tracer(lf, scene.bounds)
     rad, status = glossy_radiance(tr, lf, o32, d32, include_emission=False)
@@ -221,3 +255,150 @@ def test_glossy_radiance_matches_exact_hit(cornell_position_colour):
     assert np.mean(err[hit] < 0.08) > 0.97
     rad_e, _ = glossy_radiance(tr, lf, o32, d32, include_emission=True)
     np.testing.assert_allclose(np.asarray(rad_e)[hit], rad[hit] + 0.25, atol=1e-6)
+
+
+# ------------------------------------------------------------------------------- filtered reads
+def _random_radiance_lf(res=16, seed=3):
+    """The room's probes with random radiance (a properly bordered map) and surfaces at ``far``."""
+    lo, hi = np.zeros(3), ROOM_HI
+    lf = _synthetic_lf(_grid(lo, hi, (2, 2, 2)), res=res)
+    rng = np.random.default_rng(seed)
+    rad = add_border(jnp.asarray(rng.uniform(0.0, 2.0, (8, res, res, 3)), jnp.float32))
+    return eqx.tree_at(lambda m: m.radiance, lf, rad)
+
+
+def test_radiance_mips_keep_integral_and_border():
+    lf = _random_radiance_lf()
+    levels = radiance_mips(lf)
+    assert [m.shape[1] for m in levels] == [18, 10, 6, 4, 3]
+    np.testing.assert_array_equal(np.asarray(levels[0]), np.asarray(lf.radiance))
+    w = np.asarray(texel_solid_angles(16), np.float64)
+    want = np.einsum("ij,pijc->pc", w, np.asarray(strip_border(lf.radiance), np.float64))
+    for m in levels:
+        inner = np.asarray(strip_border(m), np.float64)
+        r = inner.shape[1]
+        wk = w.reshape(r, 16 // r, r, 16 // r).sum(axis=(1, 3))  # the level's texel solid angles
+        # ∫ L dω is preserved exactly up to float32 rounding of the averages.
+        np.testing.assert_allclose(np.einsum("ij,pijc->pc", wk, inner), want, rtol=1e-5)
+        np.testing.assert_array_equal(np.asarray(add_border(strip_border(m))), np.asarray(m))
+
+
+def _floor_rays(n, seed=0):
+    """Rays from above the floor of the room down to it: every probe of the 2×2×2 room grid is on the
+    floor's lit side (y > 0), and the synthetic surfaces at ``far`` never hide the hit."""
+    rng = np.random.default_rng(seed)
+    x = np.stack([rng.uniform(0.2, 3.8, n), np.zeros(n), rng.uniform(0.2, 4.8, n)], axis=1)
+    o = np.stack([rng.uniform(0.2, 3.8, n), np.full(n, 2.5), rng.uniform(0.2, 4.8, n)], axis=1)
+    d = _unit(x - o)
+    t = np.linalg.norm(x - o, axis=1)
+    nrm = np.tile([0.0, 1.0, 0.0], (n, 1))
+    f32 = lambda a: jnp.asarray(a, jnp.float32)
+    return f32(o), f32(d), f32(t), f32(nrm), x
+
+
+def test_filtered_reads_closed_forms():
+    lf = _random_radiance_lf()
+    o, d, t, nrm, x = _floor_rays(64)
+    read = lambda **kw: perfect_trace_radiance(lf, o, d, t, nrm, **kw)
+    bil, tex = read(filter="bilinear"), read(filter="texel")
+    assert not bool(jnp.any(bil.fallback))
+    p = np.asarray(bil.probe)
+    pos = np.asarray(lf.pos_world, np.float64)
+    # The nearest probe sees every floor point here, and the read is by the direction probe → hit.
+    np.testing.assert_array_equal(p, np.argmin(np.linalg.norm(x[:, None] - pos[None], axis=-1), axis=1))
+    w = jnp.asarray(_unit(x - pos[p]), jnp.float32)
+    want_bil = jax.vmap(sample_bilinear)(lf.radiance[p], w)
+    want_tex = jax.vmap(sample_nearest)(lf.radiance[p], w)
+    np.testing.assert_allclose(np.asarray(bil.radiance), np.asarray(want_bil), rtol=1e-5, atol=1e-6)
+    np.testing.assert_allclose(np.asarray(tex.radiance), np.asarray(want_tex), rtol=1e-6)
+    # "mip" without a cone is level 0, i.e. bilinear; with a cone wider than the sphere it is the top
+    # level: the probe's mean radiance over the sphere, ∫ L dω / 4π.
+    # (rtol: float32 rounding of the level blend, a few eps)
+    np.testing.assert_allclose(np.asarray(read(filter="mip").radiance), np.asarray(bil.radiance), rtol=1e-5)
+    wide = read(filter="mip", cone=1e6)
+    sa = np.asarray(texel_solid_angles(16), np.float64)
+    mean = np.einsum("ij,pijc->pc", sa, np.asarray(strip_border(lf.radiance), np.float64)) / sa.sum()
+    np.testing.assert_allclose(np.asarray(wide.radiance), mean[p], rtol=1e-4)
+    assert float(jnp.min(wide.lod)) >= 4.0
+    # A level between two levels blends them linearly: lod grows with the cone by ½ log₂.
+    c1, c4 = read(filter="mip", cone=1e-2), read(filter="mip", cone=4e-2)
+    l1, l4 = np.asarray(c1.lod), np.asarray(c4.lod)
+    inner = (l1 > 0) & (l4 < 4.0)  # away from the clamps at level 0 and the top level
+    assert inner.sum() > 20
+    np.testing.assert_allclose(l4[inner], l1[inner] + 1.0, atol=1e-4)
+    with pytest.raises(ConfigError):
+        read(filter="trilinear")
+    with pytest.raises(ConfigError):
+        read(choose="best")
+
+
+@pytest.fixture(scope="module")
+def cornell_colour_small():
+    """27 probes at 32² with the position colour (the cheap sibling of ``cornell_position_colour``)."""
+    scene = load_scene("cornell_box")
+    caster = BruteForceCaster(scene)
+    lo, hi = (np.asarray(b, np.float64) for b in scene.bounds)
+    probes = ProbeSet(pos_world=jnp.asarray(_grid(lo, hi, (3, 3, 3)), jnp.float32), active=jnp.ones(27, bool))
+    lo32, ext32 = jnp.asarray(lo, jnp.float32), jnp.asarray(hi - lo, jnp.float32)
+
+    def colour(o, d, k):
+        h = caster.closest_hit(o, d)
+        x = o + jnp.where(h.tri >= 0, h.t, 0.0)[:, None] * d
+        return jnp.where((h.tri >= 0)[:, None], (x - lo32[None]) / ext32[None], 0.0).astype(o.dtype), 0.0 * o
+
+    cfg = BakeConfig(
+        radiance_res=32, irradiance_res=4, moments_res=4, n_sub=2, probes_per_batch=27, progress=False
+    )
+    lf = bake_probes(scene, probes, caster=caster, radiance_fn=colour, key=jax.random.key(0), config=cfg)
+    rng = np.random.default_rng(4)
+    n = 800
+    o = rng.uniform(lo + 0.05 * (hi - lo), hi - 0.05 * (hi - lo), (3 * n, 3))
+    d = _unit(rng.normal(size=(3 * n, 3)))
+    o32, d32 = jnp.asarray(o, jnp.float32), jnp.asarray(d, jnp.float32)
+    free = _in_front_of_a_surface(scene, o, d)
+    keep = np.flatnonzero(free)[:n]
+    o32, d32 = o32[keep], d32[keep]
+    exact = caster.closest_hit(o32, d32)
+    xe = np.asarray(o32, np.float64) + np.asarray(exact.t, np.float64)[:, None] * np.asarray(d32, np.float64)
+    return scene, lf, o32, d32, exact, (xe - lo) / (hi - lo)
+
+
+def test_perfect_trace_reads_the_hit_colour(cornell_colour_small):
+    _, lf, o, d, exact, want = cornell_colour_small
+    hit = np.asarray(exact.tri) >= 0
+    t = jnp.where(exact.tri >= 0, exact.t, jnp.inf)
+    errs = {}
+    for f in ("texel", "bilinear"):
+        r = perfect_trace_radiance(lf, o, d, t, exact.geo_normal, filter=f)
+        rad = np.asarray(r.radiance, np.float64)
+        assert np.all(rad[~hit] == 0) and np.all(np.asarray(r.probe)[~hit] == -1)
+        # Some probe of the 3×3×3 grid sees nearly every point of the box (a fallback is a point seen
+        # by none of the 8 nearest, e.g. in a crevice under a block).
+        assert np.mean(np.asarray(r.fallback)[hit]) < 0.02
+        errs[f] = np.max(np.abs(rad - want), axis=1)[hit]
+    # A 32² texel spans ≲ 0.1 of the normalised colour at the far walls; texels straddling two surfaces
+    # blend them, hence 90% and not all.
+    assert np.mean(errs["texel"] < 0.1) > 0.9 and np.mean(errs["bilinear"] < 0.1) > 0.9
+    # Position colour is linear on each surface: bilinear reconstruction beats the one-texel read.
+    assert errs["bilinear"].mean() < errs["texel"].mean()
+
+
+def test_glossy_texel_filter_is_the_resolved_texel(cornell_colour_small):
+    scene, lf, o, d, _, want = cornell_colour_small
+    tr = make_tracer(lf, scene.bounds)
+    if tr.res != lf.radiance_res:
+        pytest.skip("the tracer's maps are not the radiance map's resolution")
+    res = trace_light_field(tr, o, d)
+    g = glossy_trace(tr, lf, o, d, filter="texel", include_emission=False)
+    hit = np.asarray(res.status) == RAY_HIT
+    np.testing.assert_array_equal(np.asarray(g.status), np.asarray(res.status))
+    p, tx = np.asarray(res.probe)[hit], np.asarray(res.texel)[hit]
+    old = np.asarray(lf.radiance)[p, tx[:, 0] + 1, tx[:, 1] + 1]
+    # The hit lies in its texel's cone, so reading by direction finds the same texel (bar rounding on
+    # texel edges).
+    same = np.all(np.asarray(g.radiance)[hit] == old, axis=1)
+    assert same.mean() > 0.99
+    b = glossy_trace(tr, lf, o, d, filter="bilinear", include_emission=False)
+    both = hit & np.all(np.isfinite(want), axis=1)  # the exact caster hits too (the box is open)
+    err = lambda r: np.max(np.abs(np.asarray(r.radiance, np.float64)[both] - want[both]), axis=1).mean()
+    assert err(b) < err(g)

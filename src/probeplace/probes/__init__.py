@@ -1,8 +1,14 @@
 """probes stage: light-field probe baking (McGuire et al. 2017), pre-filtering, save/load."""
 
+from .._core import BakeSettings as BakeSettings
+from ._bake import DEFAULT_EVAL_MAX_DEPTH as DEFAULT_EVAL_MAX_DEPTH
+from ._bake import INSIDE_TESTS as INSIDE_TESTS
 from ._bake import BakeConfig as BakeConfig
+from ._bake import PathTracedRadiance as PathTracedRadiance
 from ._bake import RadianceFn as RadianceFn
+from ._bake import bake_depth_for as bake_depth_for
 from ._bake import bake_probes as bake_probes
+from ._bake import check_bake_settings as check_bake_settings
 from ._bake import default_radiance_res as default_radiance_res
 from ._bake import path_traced_radiance as path_traced_radiance
 from ._filter import distance_moments as distance_moments
@@ -14,6 +20,7 @@ from ._index import GridIndex as GridIndex
 from ._index import VoxelIndex as VoxelIndex
 from ._index import grid_index as grid_index
 from ._index import voxel_index as voxel_index
+from ._inside import probes_inside as probes_inside
 from ._io import load_probes as load_probes
 from ._io import save_probes as save_probes
 from ._plot import save_contact_sheet as save_contact_sheet
@@ -34,3 +41,12 @@ from ._shade import glossy_radiance as glossy_radiance
 from ._shade import sh_coefficients as sh_coefficients
 from ._shade import sh_irradiance as sh_irradiance
 from ._shade import shade_irradiance as shade_irradiance
+
+# --- glossy reads (issue 16: filtered by direction, perfect trace) ---
+# isort: split
+from ._glossy import GLOSSY_FILTERS as GLOSSY_FILTERS
+from ._glossy import GlossyResult as GlossyResult
+from ._glossy import PerfectTraceResult as PerfectTraceResult
+from ._glossy import glossy_trace as glossy_trace
+from ._glossy import perfect_trace_radiance as perfect_trace_radiance
+from ._glossy import radiance_mips as radiance_mips

@@ -22,12 +22,8 @@
 * :func:`sh_irradiance` — the SH L2 baseline (Yang 2023): each probe's radiance map projected onto the
   real SH L2 basis (``_core._sh``), irradiance E(n) = Σ Â_l c_lm Y_lm(n) (Ramamoorthi & Hanrahan 2001
   Eq. 8–9), interpolated with the same trilinear (or inverse-distance) weights, no visibility.
-* :func:`glossy_radiance` — radiance arriving along rays, by tracing them through the probes
-  (``trace_light_field``) and reading the baked radiance (+ emission) at the hit texel (McGuire §5.1:
-  "glossy reflection … trace a ray through the light field and read the radiance"). Misses read the
-  sky. Unresolved rays fall back to the radiance the usable probe nearest to the last free point sees
-  in the ray's direction (a distant-light approximation, the classic "nearest reflection probe") and
-  are reported in ``status``.
+* :func:`glossy_radiance` — radiance arriving along rays, traced through the probes and read by
+  direction at the hit with a texel / bilinear / MIP filter: ``probes/_glossy.py`` (re-exported here).
 
 Which light the maps hold: ``lf.radiance`` is *reflected* radiance (DESIGN.md "indirect means
 reflected"), and the irradiance maps are built from it; so E here is the irradiance due to light
@@ -40,7 +36,7 @@ import equinox as eqx
 import jax
 import jax.numpy as jnp
 import numpy as np
-from jaxtyping import Array, Float, Int
+from jaxtyping import Array, Float
 
 from .._core import (
     ConfigError,
@@ -52,8 +48,9 @@ from .._core import (
     texel_solid_angles,
 )
 from .._core._sh import COSINE_LOBE, sh_basis
+from ._glossy import glossy_radiance
 from ._index import GridIndex, VoxelIndex, grid_index, voxel_index
-from ._trace import RAY_HIT, RAY_MISS, RAY_UNRESOLVED, LightFieldTracer, trace_light_field
+from ._trace import RAY_HIT, RAY_MISS, RAY_UNRESOLVED
 
 SHADINGS = ("lightfield", "irradiance", "sh")
 _CHUNK = 1 << 14
@@ -284,77 +281,6 @@ def shade_irradiance(
     if method == "sh":
         return sh_irradiance(lf, points, normals, index=index, bounds=bounds, **kw)
     raise ConfigError(f"shading method must be one of {SHADINGS}, got {method!r}")
-
-
-@eqx.filter_jit
-def _glossy_chunk(tr: LightFieldTracer, lf: LightFieldProbes, o, d, sky, include_emission: bool):
-    res = trace_light_field(tr, o, d)
-    p = jnp.maximum(res.probe, 0)
-    row, col = res.texel[:, 0] + 1, res.texel[:, 1] + 1
-    val = lf.radiance[p, row, col]
-    if include_emission:
-        val = val + lf.emission[p, row, col]
-    # Unresolved: the radiance the usable probe nearest to the last free point sees along d.
-    x = o + jnp.where(jnp.isfinite(res.t), res.t, 0.0)[:, None] * d
-    usable = tr.usable
-    d2 = jnp.where(usable[None, :], jnp.sum((x[:, None, :] - tr.pos_world[None]) ** 2, axis=-1), jnp.inf)
-    near = jnp.argmin(d2, axis=1).astype(jnp.int32)
-    fb = jax.vmap(sample_bilinear)(lf.radiance[near], d)
-    if include_emission:
-        fb = fb + jax.vmap(sample_bilinear)(lf.emission[near], d)
-    miss = jnp.broadcast_to(sky[None, :], val.shape) if include_emission else jnp.zeros_like(val)
-    out = jnp.where(
-        (res.status == RAY_HIT)[:, None],
-        val,
-        jnp.where((res.status == RAY_MISS)[:, None], miss, fb),
-    )
-    return out, res.status
-
-
-def glossy_radiance(
-    tracer: LightFieldTracer,
-    lf: LightFieldProbes,
-    origins: Float[Array, "n 3"],
-    directions: Float[Array, "n 3"],
-    *,
-    include_emission: bool = True,
-    sky: Float[Array, "3"] | None = None,
-    chunk: int = _CHUNK,
-) -> tuple[Float[Array, "n 3"], Int[Array, " n"]]:
-    """Radiance arriving at ``origins`` from ``directions``, read from the probes (module docstring).
-
-    Args:
-        tracer: :func:`~probeplace.probes.make_tracer` of ``lf``.
-        lf: the baked probes whose maps are read.
-        origins, directions: rays, world frame (offset secondary rays off their surface yourself).
-        include_emission: add the emission baked at the hit texel, and the sky on a miss (what the ray
-            would see); ``False`` gives reflected radiance only (the glossy *indirect* input).
-        sky: radiance of escaping rays (default zero; pass ``scene.sky_radiance``). The sun's disk is
-            not represented.
-        chunk: rays per jitted chunk.
-
-    Returns:
-        (radiance (n, 3), status (n,) RAY_MISS=0 / RAY_HIT=1 / RAY_UNRESOLVED=2; unresolved rays carry
-        the fallback radiance).
-    """
-    dt = tracer.pos_world.dtype
-    s = jnp.zeros(3, dt) if sky is None else jnp.asarray(sky, dt)
-    o = jnp.asarray(origins, dt)
-    d = jnp.asarray(directions, dt)
-    if o.ndim != 2 or o.shape[-1] != 3 or d.shape != o.shape:
-        raise ValueError(f"origins and directions must both be (n, 3), got {o.shape} and {d.shape}")
-    n = o.shape[0]
-    if n == 0:
-        return jnp.zeros((0, 3), dt), jnp.zeros((0,), jnp.int32)
-    size = min(chunk, max(64, 1 << (n - 1).bit_length()))
-    outs, stats = [], []
-    for st in range(0, n, size):
-        k = min(size, n - st)
-        pad = lambda a, st=st, k=k: jnp.pad(a[st : st + k], ((0, size - k), (0, 0)), mode="edge")
-        v, status = _glossy_chunk(tracer, lf, pad(o), pad(d), s, include_emission)
-        outs.append(v[:k])
-        stats.append(status[:k])
-    return jnp.concatenate(outs), jnp.concatenate(stats)
 
 
 __all__ = [

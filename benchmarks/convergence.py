@@ -1,0 +1,348 @@
+"""Convergence of the probe error with probe density and map resolution, and what the error is made of.
+
+    .venv/bin/python benchmarks/convergence.py [--quick] [--scenes cornell sponza] [--bake-spp N]
+        [--n-sub N] [--res 16 32 64] [--grids 4x4x4 8x4x4] [--seeds 3] [--fresh]
+
+For each scene (Cornell box "front", Crytek Sponza "CameraMain"), uniform grids of increasing density
+(cell centres of the scene box) × radiance-map resolutions, baked with the path tracer
+(``probes.path_traced_radiance``, ``--bake-spp`` paths × ``--n-sub``² jittered rays per texel, path depth
+= the evaluation's ``max_depth`` − 1) and evaluated (``probeplace.evaluate``: light-field shading,
+``glossy_filter`` of the evaluation's default). Per cell: the glossy and diffuse MSE, the glossy MSE's
+parts (perfect trace, trace share and ``trace_excess``, split by ray status, resolved only), noise floors,
+black images, agreement of resolved hits with the exact distance, unresolved share, 95 % intervals, bake
+time (compile apart: a one-batch warm-up first) and shading time (compile apart).
+
+The reference, the primary samples and the CRN glossy reference depend only on (scene, evaluation
+settings, seed): they are computed once per scene and seed with the evaluation's public steps
+(``evaluate.render_reference`` …) and shared by every cell; only shading, the perfect trace and scoring
+run per cell. Each cell's JSON is cached atomically in ``benchmarks/results/convergence_cells/`` (the
+name carries a hash of the settings, not of the code) and skipped when present; ``--fresh`` recomputes
+(do so after changing the code).
+
+Targets (issue 16), each reported as ``targets: {key: {value, target, met}}``:
+``cornell_4x4x4_r64_mse_over_floor`` ≤ 1.3 (glossy MSE ÷ CRN noise floor); on Sponza at 16×8×8 × 64²
+``_agreement`` ≥ 0.95, ``_unresolved`` ≤ 0.03, ``_trace_excess`` ≤ 0.2, ``_glossy_over_black`` and
+``_diffuse_over_black`` < 1; ``sponza_grid128_glossy_over_black`` < 1 (8×4×4, 128 probes) and
+``sponza_grid128_seed_cv`` ≤ 0.10 (coefficient of variation, population σ / mean, of the glossy MSE over
+``--seeds`` bake + evaluation seeds). Keys of cells not run (``--quick``, or Sponza absent) are null with
+a reason in ``skipped``. Last stdout line: the JSON, also written to benchmarks/results/convergence.json.
+"""
+
+from __future__ import annotations
+
+import argparse
+import hashlib
+import json
+import os
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+from _common import RESULTS, env_info, setup_scene_path, write_result
+
+CELLS = RESULTS / "convergence_cells"
+SCENES = {
+    "cornell": {"name": "cornell_box", "view": "front"},
+    "sponza": {"name": "crytek_sponza", "view": "CameraMain"},
+}
+FULL = {
+    "cornell": {"grids": ["2x2x2", "3x3x3", "4x4x4", "6x6x6"], "res": [16, 32, 64, 128], "eval": (32, 32)},
+    "sponza": {"grids": ["4x2x2", "8x4x4", "16x8x8"], "res": [16, 32, 64], "eval": (64, 48)},
+}
+QUICK = {
+    "cornell": {"grids": ["2x2x2", "4x4x4"], "res": [16, 64], "eval": (24, 24)},
+    "sponza": {"grids": ["8x4x4"], "res": [16], "eval": (48, 36)},
+}
+#: (key suffix, target, comparison) of the issue's targets.
+TARGETS = {
+    "cornell_4x4x4_r64_mse_over_floor": (1.3, "<="),
+    "sponza_16x8x8_r64_agreement": (0.95, ">="),
+    "sponza_16x8x8_r64_unresolved": (0.03, "<="),
+    "sponza_16x8x8_r64_trace_excess": (0.2, "<="),
+    "sponza_16x8x8_r64_glossy_over_black": (1.0, "<"),
+    "sponza_16x8x8_r64_diffuse_over_black": (1.0, "<"),
+    "sponza_grid128_glossy_over_black": (1.0, "<"),
+    "sponza_grid128_seed_cv": (0.10, "<="),
+}
+
+
+def log(msg: str) -> None:
+    print(f"[convergence {time.strftime('%H:%M:%S')}] {msg}", file=sys.stderr, flush=True)
+
+
+def dims_of(grid: str) -> tuple[int, int, int]:
+    d = tuple(int(v) for v in grid.split("x"))
+    if len(d) != 3 or min(d) < 1:
+        raise SystemExit(f"bad grid {grid!r}: want NxMxK")
+    return d  # type: ignore[return-value]
+
+
+def grid_positions(scene, dims) -> np.ndarray:
+    """Cell centres of a dims grid over the scene's bounding box."""
+    lo, hi = (np.asarray(b, np.float64) for b in scene.bounds)
+    axes = [(np.arange(n) + 0.5) / n for n in dims]
+    return np.stack(np.meshgrid(*axes, indexing="ij"), -1).reshape(-1, 3) * (hi - lo) + lo
+
+
+def write_json_atomic(path: Path, obj: dict) -> None:
+    path.parent.mkdir(parents=True, exist_ok=True)
+    fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{path.stem}.", suffix=".tmp")
+    with os.fdopen(fd, "w") as f:
+        json.dump(obj, f, indent=1, sort_keys=True)
+    os.replace(tmp, path)
+
+
+class Bench:
+    """One scene's shared state: scene, caster, evaluation config and the per-seed shared steps."""
+
+    def __init__(self, key: str, args, size):
+        from probeplace.evaluate import EvalConfig
+        from probeplace.render import default_caster
+        from probeplace.scene import load_scene
+
+        self.key, self.args = key, args
+        self.scene = load_scene(SCENES[key]["name"])
+        self.view = SCENES[key]["view"]
+        self.caster = default_caster(self.scene)
+        self.config = EvalConfig(
+            width=size[0],
+            height=size[1],
+            spp=args.eval_spp,
+            glossy_spp=args.glossy_spp,
+            glossy_ref_spp=args.glossy_ref_spp,
+            max_depth=args.max_depth,
+            timing_repeats=args.timing_repeats,
+        )
+        self.shared: dict = {}
+        self.warm: set = set()
+
+    def settings(self) -> dict:
+        c = self.config
+        return {
+            "scene": self.scene.name,
+            "view": self.view,
+            "width": c.width,
+            "height": c.height,
+            "spp": c.spp,
+            "glossy_spp": c.glossy_spp,
+            "glossy_ref_spp": c.glossy_ref_spp,
+            "max_depth": c.max_depth,
+            "glossy_filter": c.glossy_filter,
+            "bake_spp": self.args.bake_spp,
+            "n_sub": self.args.n_sub,
+            "bake_depth": c.max_depth - 1,
+        }
+
+    def steps(self, seed: int):
+        """Reference, primary samples and CRN reference of one seed (computed once, shared by cells)."""
+        if seed not in self.shared:
+            from probeplace.evaluate import crn_reference, render_reference, sample_primary
+
+            cam = self.scene.view(self.view)
+            t0 = time.perf_counter()
+            ref = render_reference(self.scene, cam, self.config, seed=seed, caster=self.caster)
+            prim = sample_primary(self.scene, cam, self.config, seed=seed, caster=self.caster)
+            crn = crn_reference(self.scene, prim, self.config, seed=seed, caster=self.caster)
+            log(f"{self.key}: reference + CRN reference for seed {seed}: {time.perf_counter() - t0:.1f} s")
+            self.shared[seed] = (ref, prim, crn, time.perf_counter() - t0)
+        return self.shared[seed]
+
+    def bake(self, dims, res: int, seed: int):
+        from probeplace._core import ProbeSet
+        from probeplace.probes import BakeConfig, bake_probes, path_traced_radiance
+
+        a = self.args
+        pos = grid_positions(self.scene, dims)
+        per_batch = int(max(1, min(len(pos), (1 << 18) // (res * res * a.n_sub * a.n_sub))))
+        cfg = BakeConfig(radiance_res=res, n_sub=a.n_sub, probes_per_batch=per_batch, progress=False)
+        fn = path_traced_radiance(
+            self.scene, spp=a.bake_spp, max_depth=self.config.max_depth - 1, caster=self.caster
+        )
+        warm_s = 0.0
+        if (res, per_batch) not in self.warm:  # compile with one batch of the same shapes, timed apart
+            sub = ProbeSet(
+                pos_world=jnp.asarray(pos[:per_batch], jnp.float32), active=jnp.ones(per_batch, bool)
+            )
+            t0 = time.perf_counter()
+            bake_probes(
+                self.scene, sub, caster=self.caster, radiance_fn=fn, key=jax.random.key(seed), config=cfg
+            )
+            warm_s = time.perf_counter() - t0
+            self.warm.add((res, per_batch))
+        probes = ProbeSet(pos_world=jnp.asarray(pos, jnp.float32), active=jnp.ones(len(pos), bool))
+        t0 = time.perf_counter()
+        lf = bake_probes(
+            self.scene, probes, caster=self.caster, radiance_fn=fn, key=jax.random.key(seed), config=cfg
+        )
+        bake_s = time.perf_counter() - t0
+        n_batches = -(-len(pos) // per_batch)
+        return lf, {
+            "bake_s": bake_s,
+            "bake_compile_s": max(warm_s - bake_s / n_batches, 0.0) if warm_s else 0.0,
+        }
+
+    def cell(self, grid: str, res: int, seed: int) -> dict:
+        """One cell's figures, from the cache when present."""
+        settings = self.settings() | {"grid": grid, "res": res, "seed": seed}
+        digest = hashlib.sha1(json.dumps(settings, sort_keys=True).encode()).hexdigest()[:10]
+        path = CELLS / f"{self.key}_{grid}_r{res}_s{seed}_{digest}.json"
+        if path.exists() and not self.args.fresh:
+            log(f"{path.name}: cached")
+            return json.loads(path.read_text())
+        from probeplace.evaluate import perfect_trace, score, shade_probes
+        from probeplace.probes import radiance_mips
+
+        log(f"{self.key} {grid} r{res} seed {seed}: baking {int(np.prod(dims_of(grid)))} probes")
+        lf, times = self.bake(dims_of(grid), res, seed)
+        log(f"{self.key} {grid} r{res} seed {seed}: baked in {times['bake_s']:.1f} s; evaluating")
+        ref, prim, crn, _ = self.steps(seed)
+        check = getattr(__import__("probeplace.probes", fromlist=["x"]), "check_bake_settings", None)
+        if check is not None:
+            check(lf, scene_name=self.scene.name, eval_max_depth=self.config.max_depth)
+        t0 = time.perf_counter()
+        mips = radiance_mips(lf) if self.config.glossy_filter == "mip" else None
+        shading = shade_probes(self.scene, lf, prim, self.config, mips=mips)
+        perfect = perfect_trace(lf, prim, self.config, caster=self.caster, mips=mips)
+        m = score(self.scene, lf, self.view, self.config, seed, ref, prim, crn, shading, perfect).metrics
+        out = summarise(m) | times | {"eval_s": time.perf_counter() - t0, "settings": settings}
+        write_json_atomic(path, out)
+        log(
+            f"{self.key} {grid} r{res} seed {seed}: glossy {out['mse_glossy']:.3g} (floor "
+            f"{out['noise_floor_glossy']:.3g}, perfect {out['mse_glossy_perfect_trace']:.3g}), unresolved "
+            f"{out['unresolved']:.3f}, agreement {out['agreement']}"
+        )
+        return out
+
+
+def summarise(m: dict) -> dict:
+    """The cell's figures from an evaluation's metrics."""
+    ratio = lambda a, b: a / b if b else None
+    return {
+        "n_probes": m["n_probes"],
+        "n_probes_usable": m["n_probes_usable"],
+        "mse_glossy": m["mse_glossy_indirect"],
+        "noise_floor_glossy": m["noise_floor_glossy_indirect"],
+        "mse_over_floor": ratio(m["mse_glossy_indirect"], m["noise_floor_glossy_indirect"]),
+        "mse_glossy_perfect_trace": m["mse_glossy_perfect_trace"],
+        "perfect_trace_over_floor": ratio(m["mse_glossy_perfect_trace"], m["noise_floor_glossy_indirect"]),
+        "perfect_trace_over_black": ratio(m["mse_glossy_perfect_trace"], m["mse_black_glossy_indirect"]),
+        "trace_share": m["mse_glossy_trace_share"],
+        "trace_excess": m["trace_excess"],
+        "by_status": m["mse_glossy_by_status"],
+        "resolved_only": m["mse_glossy_resolved_only"],
+        "status_share": m["glossy_status_share"],
+        "agreement": m["glossy_hit_agreement"],
+        "unresolved": m["unresolved_share"],
+        "perfect_trace_fallback_share": m["perfect_trace_fallback_share"],
+        "mse_black_glossy": m["mse_black_glossy_indirect"],
+        "glossy_over_black": ratio(m["mse_glossy_indirect"], m["mse_black_glossy_indirect"]),
+        "mse_diffuse": m["mse_diffuse_indirect"],
+        "noise_floor_diffuse": m["noise_floor_diffuse_indirect"],
+        "mse_black_diffuse": m["mse_black_diffuse_indirect"],
+        "diffuse_over_black": ratio(m["mse_diffuse_indirect"], m["mse_black_diffuse_indirect"]),
+        "relmse_glossy": m["relmse_glossy_indirect"],
+        "relmse_diffuse": m["relmse_diffuse_indirect"],
+        "ci95_mse_glossy": m["ci95_mse_glossy_indirect"],
+        "ci95_mse_glossy_perfect_trace": m["ci95_mse_glossy_perfect_trace"],
+        "ci95_mse_diffuse": m["ci95_mse_diffuse_indirect"],
+        "shading_s_per_frame": m["shading_s_per_frame"],
+        "shading_compile_s": m["shading_compile_s"],
+    }
+
+
+def run_scene(key: str, args, plan: dict, result: dict) -> None:
+    try:
+        b = Bench(key, args, plan["eval"])
+    except Exception as e:  # the scene lives outside the repository (PROBEPLACE_SCENE_PATH)
+        result["skipped"][key] = f"{SCENES[key]['name']} not loaded: {type(e).__name__}: {e}"
+        log(result["skipped"][key])
+        return
+    cells = {}
+    for grid in plan["grids"]:
+        for res in plan["res"]:
+            c = b.cell(grid, res, 0)
+            cells[f"{grid}_r{res}"] = c
+            for f in ("mse_over_floor", "agreement", "unresolved", "trace_excess"):
+                result[f"{key}_{grid}_r{res}_{f}"] = c[f]
+            for f in ("glossy_over_black", "diffuse_over_black", "mse_glossy_perfect_trace"):
+                result[f"{key}_{grid}_r{res}_{f}"] = c[f]
+    result["cells"][key] = cells
+    result["shared_steps_s"][key] = {str(s): v[3] for s, v in b.shared.items()}
+    if key == "sponza":  # the 128-probe grid over seeds
+        res = args.grid128_res
+        runs = [b.cell("8x4x4", res, s) for s in range(args.seeds)]
+        g = np.array([r["mse_glossy"] for r in runs])
+        result["sponza_grid128"] = {"res": res, "seeds": args.seeds, "runs": runs}
+        result["sponza_grid128_glossy_over_black"] = runs[0]["glossy_over_black"]
+        result["sponza_grid128_diffuse_over_black"] = runs[0]["diffuse_over_black"]
+        result["sponza_grid128_mse_glossy_perfect_trace"] = runs[0]["mse_glossy_perfect_trace"]
+        result["sponza_grid128_perfect_trace_over_black"] = runs[0]["perfect_trace_over_black"]
+        result["sponza_grid128_perfect_trace_over_floor"] = runs[0]["perfect_trace_over_floor"]
+        result["sponza_grid128_seed_cv"] = float(g.std() / g.mean()) if len(g) > 1 and g.mean() > 0 else None
+    settings = b.settings()
+    result["settings"][key] = settings | {"grids": plan["grids"], "res": plan["res"]}
+
+
+def targets(result: dict) -> dict:
+    out = {}
+    for k, (t, op) in TARGETS.items():
+        v = result.get(k)
+        met = None if v is None else {"<=": v <= t, ">=": v >= t, "<": v < t}[op]
+        out[k] = {"value": v, "target": f"{op} {t}", "met": met}
+    return out
+
+
+def main(argv=None) -> dict:
+    ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    ap.add_argument("--quick", action="store_true", help="small grids, resolutions and images")
+    ap.add_argument("--scenes", nargs="+", default=["cornell", "sponza"], choices=list(SCENES))
+    ap.add_argument("--grids", nargs="+", default=None, help="override the grids (all scenes), e.g. 4x4x4")
+    ap.add_argument("--res", nargs="+", type=int, default=None, help="override the map resolutions")
+    ap.add_argument("--bake-spp", type=int, default=None, help="paths per texel ray (default 8; quick 4)")
+    ap.add_argument("--n-sub", type=int, default=1, help="n_sub² jittered rays per texel")
+    ap.add_argument("--max-depth", type=int, default=4, help="evaluation path depth (bake: − 1)")
+    ap.add_argument("--eval-spp", type=int, default=None, help="reference paths/pixel (default 32; quick 16)")
+    ap.add_argument("--glossy-spp", type=int, default=4)
+    ap.add_argument("--glossy-ref-spp", type=int, default=4)
+    ap.add_argument("--timing-repeats", type=int, default=1)
+    ap.add_argument("--seeds", type=int, default=3, help="bake + evaluation seeds of the 128-probe grid")
+    ap.add_argument("--grid128-res", type=int, default=None, help="its map resolution (default 64; quick 16)")
+    ap.add_argument("--fresh", action="store_true", help="recompute cached cells")
+    args = ap.parse_args(argv)
+    q = args.quick
+    args.bake_spp = args.bake_spp or (4 if q else 8)
+    args.eval_spp = args.eval_spp or (16 if q else 32)
+    args.grid128_res = args.grid128_res or (16 if q else 64)
+    setup_scene_path()
+    t_all = time.perf_counter()
+    result: dict = {
+        "env": env_info(),
+        "quick": q,
+        "cells": {},
+        "settings": {},
+        "skipped": {},
+        "shared_steps_s": {},
+    }
+    for key in args.scenes:
+        plan = dict((QUICK if q else FULL)[key])
+        plan["grids"] = args.grids or plan["grids"]
+        plan["res"] = args.res or plan["res"]
+        run_scene(key, args, plan, result)
+    for k in TARGETS:
+        if k not in result:
+            result[k] = None
+            result["skipped"].setdefault(k, "cell not run (--quick, --grids/--res or the scene is absent)")
+    result["targets"] = targets(result)
+    result["total_s"] = time.perf_counter() - t_all
+    write_result("convergence", result)
+    return result
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,90 @@
+"""Evaluation settings (docs/evaluate.md)."""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+
+from .._core import ConfigError
+from ..probes._glossy import GLOSSY_FILTERS
+from ..probes._shade import SHADINGS
+from ..probes._trace import TraceConfig
+
+
+@dataclasses.dataclass(frozen=True, kw_only=True)
+class EvalConfig:
+    """Evaluation settings.
+
+    Attributes:
+        width, height: image size.
+        spp: reference paths per pixel (the render of every component).
+        glossy_spp: primary samples per pixel for the probe image, each with one GGX direction (CRN).
+        glossy_ref_spp: paths per GGX direction for the CRN reference (≥ 2, for its variance).
+        max_depth: longest path in segments (≥ 3: indirect light needs two bounces).
+        shading: diffuse method, ``"lightfield"`` | ``"irradiance"`` | ``"sh"``.
+        trace: light-field tracer settings (glossy rays).
+        glossy_filter: how glossy rays read the radiance map at their hit: ``"texel"`` (one texel,
+            unfiltered), ``"bilinear"`` (default) or ``"mip"`` (footprint-driven MIP level,
+            probes/_glossy.py). Against the CRN reference, which scores each direction by itself, the
+            lobe-wide MIP read blurs every sample and measured 4× the bilinear MSE (docs/evaluate.md).
+        glossy_lod_bias: added to the MIP level of ``"mip"`` reads.
+        perfect_trace_margin: visibility margin of the perfect-trace probe choice (fraction of the
+            probe–hit distance; ``probes.perfect_trace_radiance``).
+        agreement_rtol: a resolved light-field hit agrees with the exact hit when |t_lf − t_exact| ≤
+            rtol · t_exact + 1e-4 × the scene diagonal.
+        bootstrap_resamples: resamples of the pixels for the 95% confidence intervals (fixed seed 0).
+        relmse_eps: ε of the relative MSE, as a fraction of the squared mean reference luminance.
+        seed: random seed (used when no key is given).
+        normal_bias: Chebyshev receiver offset (× probe spacing), see ``probes.diffuse_irradiance``.
+        leak_threshold: relative luminance below which a reference pixel counts as unlit (light leak).
+        timing_repeats: shading repeats timed (median) after the compile run.
+        progress: progress bars for the reference render.
+    """
+
+    width: int = 64
+    height: int = 64
+    spp: int = 64
+    glossy_spp: int = 8
+    glossy_ref_spp: int = 4
+    max_depth: int = 8
+    shading: str = "lightfield"
+    trace: TraceConfig = dataclasses.field(default_factory=TraceConfig)
+    glossy_filter: str = "bilinear"
+    glossy_lod_bias: float = 0.0
+    perfect_trace_margin: float = 0.05
+    agreement_rtol: float = 0.02
+    bootstrap_resamples: int = 1000
+    relmse_eps: float = 0.01
+    seed: int = 0
+    normal_bias: float = 0.2
+    leak_threshold: float = 0.01
+    timing_repeats: int = 3
+    progress: bool = False
+
+    def __post_init__(self):
+        for name in ("width", "height", "spp", "glossy_spp", "timing_repeats", "bootstrap_resamples"):
+            v = getattr(self, name)
+            if not isinstance(v, int) or isinstance(v, bool) or v < 1:
+                raise ConfigError(f"EvalConfig.{name} must be a positive int, got {v!r}")
+        if not isinstance(self.glossy_ref_spp, int) or self.glossy_ref_spp < 2:
+            raise ConfigError(f"EvalConfig.glossy_ref_spp must be an int ≥ 2, got {self.glossy_ref_spp!r}")
+        if not isinstance(self.max_depth, int) or self.max_depth < 3:
+            raise ConfigError(f"EvalConfig.max_depth must be an int ≥ 3, got {self.max_depth!r}")
+        if self.shading not in SHADINGS:
+            raise ConfigError(f"EvalConfig.shading must be one of {SHADINGS}, got {self.shading!r}")
+        if self.glossy_filter not in GLOSSY_FILTERS:
+            raise ConfigError(
+                f"EvalConfig.glossy_filter must be one of {GLOSSY_FILTERS}, got {self.glossy_filter!r}"
+            )
+        if not isinstance(self.glossy_lod_bias, int | float) or not math.isfinite(self.glossy_lod_bias):
+            raise ConfigError(
+                f"EvalConfig.glossy_lod_bias must be a finite number, got {self.glossy_lod_bias!r}"
+            )
+        if not isinstance(self.trace, TraceConfig):
+            raise ConfigError(f"EvalConfig.trace must be a TraceConfig, got {type(self.trace).__name__}")
+        if not self.normal_bias >= 0 or not self.leak_threshold >= 0:
+            raise ConfigError("EvalConfig.normal_bias and leak_threshold must be ≥ 0")
+        if not 0 <= self.perfect_trace_margin < 1 or not self.agreement_rtol >= 0 or not self.relmse_eps > 0:
+            raise ConfigError(
+                "EvalConfig.perfect_trace_margin must be in [0, 1), agreement_rtol ≥ 0 and relmse_eps > 0"
+            )

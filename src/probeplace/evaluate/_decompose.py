@@ -1,0 +1,137 @@
+"""The glossy error taken apart, relative MSE and bootstrap confidence intervals (pure NumPy).
+
+Samples are pixel-major: sample i belongs to pixel i // S (S samples per pixel). A pixel's glossy
+value is mean_s(w_s · L_s), so its error against the CRN reference is
+
+    e_px = Σ_s e_s,   e_s = w_s (L_probe,s − L_ref,s) / S.
+
+**Additive split by ray status.** e_px² = Σ_k e_px · e_px⁽ᵏ⁾ with e_px⁽ᵏ⁾ = Σ_{s: status k} e_s, so the
+per-status terms MSE_k = mean_px,c(e_px · e_px⁽ᵏ⁾) add up to the MSE *exactly* (the covariance or
+"Euler" allocation of a sum of squares: each sample is charged its own error times its pixel's total
+error). A term can be negative when a status's errors cancel the others'. ``resolved_only`` is the MSE
+of the image whose unresolved rays carry the reference radiance, mean((e − e⁽ᵘⁿʳᵉˢᵒˡᵛᵉᵈ⁾)²): the
+resolved rays scored apart.
+
+**Perfect trace.** The same estimator with the radiance read at the exact hit (L_perfect): its MSE is
+the representation floor; the trace's share is MSE − MSE_perfect and ``trace_excess`` = MSE /
+MSE_perfect − 1.
+
+**Relative MSE.** mean over pixels of (p − r)² / (r² + ε) on per-pixel luminance (Rousselle, Knaus &
+Zwicker 2011, "Adaptive sampling and reconstruction using greedy error minimization", §6; the metric of
+Bako et al. 2017 KPCN, Bitterli et al. 2016 and most Monte Carlo denoising papers, there with ε = 0.01
+on display-range images). Our radiance has no fixed scale, so ε = ``eps`` × (mean reference
+luminance)²: the usual ε = 0.01 for an image scaled to mean luminance 1.
+
+**Confidence intervals.** Percentile bootstrap over pixels (Efron & Tibshirani 1993, ch. 13): the mean
+of the per-pixel squared error over ``n_resamples`` resamples of the pixels with replacement, from a
+fixed seed (deterministic); the interval between the (1 ± level)/2 quantiles.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+#: Tracer status codes (``probes.RAY_MISS`` / ``RAY_HIT`` / ``RAY_UNRESOLVED``) → names.
+STATUS_NAMES = {0: "miss", 1: "hit", 2: "unresolved"}
+_LUMA = np.array([0.2126, 0.7152, 0.0722])  # Rec. 709, as _core.luminance
+
+
+def pixel_means(v: np.ndarray, n_pixels: int, spp: int) -> np.ndarray:
+    """(n_pixels·spp, …) pixel-major samples → (n_pixels, …) per-pixel means."""
+    v = np.asarray(v, np.float64)
+    return v.reshape(n_pixels, spp, *v.shape[1:]).mean(axis=1)
+
+
+def glossy_terms(
+    w: np.ndarray,
+    l_probe: np.ndarray,
+    l_ref: np.ndarray,
+    l_perfect: np.ndarray,
+    status: np.ndarray,
+    spp: int,
+) -> dict:
+    """The glossy MSE and its parts from per-sample arrays (module docstring).
+
+    Args:
+        w: (n, 3) estimator weights w = f_s cos θ / pdf (0 where a sample has no glossy ray).
+        l_probe, l_ref, l_perfect: (n, 3) radiance from the probes, the CRN reference and the perfect trace.
+        status: (n,) tracer status (0 miss, 1 hit, 2 unresolved; other values: no ray, weight 0).
+        spp: samples per pixel S (n = pixels × S, pixel-major).
+
+    Returns:
+        ``mse``, ``mse_perfect_trace``, ``trace_share``, ``trace_excess`` (None when the floor is 0),
+        ``by_status`` {miss, hit, unresolved} (adds up to ``mse``), ``resolved_only``, and the per-pixel
+        squared errors ``sq_px`` / ``sq_px_perfect`` ((n_pixels,), mean over RGB) for confidence intervals.
+    """
+    w = np.asarray(w, np.float64)
+    status = np.asarray(status)
+    n = w.shape[0]
+    if n % spp:
+        raise ValueError(f"the sample count {n} is not a multiple of spp={spp}")
+    n_px = n // spp
+    e_s = w * (np.asarray(l_probe, np.float64) - np.asarray(l_ref, np.float64)) / spp
+    e_px = e_s.reshape(n_px, spp, -1).sum(axis=1)
+    e_perf = (w * (np.asarray(l_perfect, np.float64) - np.asarray(l_ref, np.float64)) / spp).reshape(
+        n_px, spp, -1
+    )
+    e_perf = e_perf.sum(axis=1)
+    mse = float(np.mean(e_px**2))
+    mse_p = float(np.mean(e_perf**2))
+    # Per-sample charge: the sample's own error times its pixel's total error, / (pixels × channels).
+    charge = np.sum(np.repeat(e_px, spp, axis=0) * e_s, axis=1) / e_px.size
+    by_status = {name: float(np.sum(charge[status == k])) for k, name in STATUS_NAMES.items()}
+    e_res = (e_s * (status != 2)[:, None]).reshape(n_px, spp, -1).sum(axis=1)
+    return {
+        "mse": mse,
+        "mse_perfect_trace": mse_p,
+        "trace_share": mse - mse_p,
+        "trace_excess": mse / mse_p - 1.0 if mse_p > 0 else None,
+        "by_status": by_status,
+        "resolved_only": float(np.mean(e_res**2)),
+        "sq_px": np.mean(e_px**2, axis=1),
+        "sq_px_perfect": np.mean(e_perf**2, axis=1),
+    }
+
+
+def bootstrap_ci(
+    per_pixel: np.ndarray, *, n_resamples: int = 1000, level: float = 0.95, seed: int = 0
+) -> list[float]:
+    """[lo, hi] percentile-bootstrap interval of mean(per_pixel) (module docstring); deterministic."""
+    v = np.asarray(per_pixel, np.float64).reshape(-1)
+    if v.size == 0:
+        return [float("nan"), float("nan")]
+    rng = np.random.default_rng(seed)
+    means = np.empty(n_resamples)
+    batch = max(1, (1 << 22) // v.size)  # bound the (batch, pixels) index array to ~32 MB
+    for s in range(0, n_resamples, batch):
+        b = min(batch, n_resamples - s)
+        means[s : s + b] = v[rng.integers(0, v.size, (b, v.size))].mean(axis=1)
+    a = (1.0 - level) / 2.0
+    lo, hi = np.quantile(means, [a, 1.0 - a])
+    return [float(lo), float(hi)]
+
+
+def relative_mse(probe: np.ndarray, ref: np.ndarray, *, eps: float = 0.01) -> float | None:
+    """mean over pixels of (p − r)² / (r² + ε) on luminance, ε = eps × mean(r)² (module docstring);
+    None when the reference is black."""
+    p = np.asarray(probe, np.float64) @ _LUMA
+    r = np.asarray(ref, np.float64) @ _LUMA
+    scale = float(np.mean(r)) ** 2
+    if not scale > 0:
+        return None
+    return float(np.mean((p - r) ** 2 / (r * r + eps * scale)))
+
+
+def hit_agreement(
+    t_lf: np.ndarray, t_exact: np.ndarray, status: np.ndarray, *, rtol: float = 0.02, atol: float = 0.0
+) -> tuple[float | None, int]:
+    """(share of RAY_HIT rays with a finite exact hit within |t_lf − t_exact| ≤ rtol·t_exact + atol —
+    an exact miss disagrees —, number of RAY_HIT rays); the share is None when there is none."""
+    hit = np.asarray(status) == 1
+    n = int(hit.sum())
+    if n == 0:
+        return None, 0
+    te = np.asarray(t_exact, np.float64)[hit]
+    tl = np.asarray(t_lf, np.float64)[hit]
+    ok = np.isfinite(te) & (np.abs(tl - te) <= rtol * np.where(np.isfinite(te), te, 0.0) + atol)
+    return float(np.mean(ok)), n
