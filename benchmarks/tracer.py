@@ -7,8 +7,10 @@ Rays are secondary rays as shading makes them: from surface points seen by the s
 hemisphere. Probes: Cornell box 4×4×4 grid, Sponza 8×4×4 grid (Wang 2019's equal-quality grid), baked
 geometry maps at 64² (radiance constant: the tracer reads only distance and normal maps). Compile time
 is measured apart (``.lower().compile()``); timings are medians of interleaved repeats (light field,
-Embree 1 thread). ``hiz_vs_two_level_steps`` is mean texel steps of hi-Z over two-level on the same rays
-(Wang 2019 §4.2 reports ≥ 30% fewer steps, i.e. a ratio ≤ 0.7, at 512² maps).
+Embree 1 thread). ``hiz_vs_two_level_steps`` is mean march steps of hi-Z over two-level on the same rays
+(Wang 2019 §4.2 reports ≥ 30% fewer steps, i.e. a ratio ≤ 0.7, at 512² maps);
+``hiz_vs_two_level_steps_r128`` / ``_r256`` are the same ratio with geometry maps baked at 128² / 256²
+(Cornell 4×4×4; ``sponza_…`` the Sponza 8×4×4 grid), from ``hierarchy_steps``.
 
 ``cornell_glossy_mse`` / ``cornell_glossy_noise_floor``: ``probeplace.evaluate.evaluate`` on the Cornell box
 "front" view (4×4×4 grid baked with the path tracer, light-field shading; image, spp and map resolution in
@@ -127,6 +129,30 @@ def bench_scene(scene, dims, res, n_rays, repeats, seed=0):
     return out, lf
 
 
+def hierarchy_steps(scene, dims, resolutions, n_rays, seed=0) -> dict:
+    """Mean march steps of each hierarchy on the same rays, geometry maps baked at each resolution, and
+    whether hi-Z and flat give the same answers (the hierarchy is conservative)."""
+    caster = EmbreeCaster(scene)
+    o_np, d_np = shading_rays(scene, caster, n_rays, seed)
+    o, d = jnp.asarray(o_np), jnp.asarray(d_np)
+    out = {}
+    for res in resolutions:
+        lf, _ = bake_grid(scene, dims, res, caster)
+        row: dict = {"rays": len(o_np)}
+        runs = {}
+        for h in ("hiz", "two_level", "flat"):
+            tr = make_tracer(lf, scene.bounds, config=TraceConfig(hierarchy=h))
+            runs[h] = jax.block_until_ready(trace_light_field(tr, o, d))
+            row[f"steps_{h}"] = float(np.mean(np.asarray(runs[h].steps)))
+        row["hiz_vs_two_level_steps"] = row["steps_hiz"] / row["steps_two_level"]
+        row["hiz_same_status_as_flat"] = float(
+            np.mean(np.asarray(runs["hiz"].status) == np.asarray(runs["flat"].status))
+        )
+        out[f"r{res}"] = row
+        del lf
+    return out
+
+
 def cornell_eval(scene, quick: bool) -> dict:
     """Glossy MSE and noise floor of a 4×4×4 path-traced bake on the Cornell box (docs/evaluate.md)."""
     from probeplace.evaluate import EvalConfig, evaluate
@@ -218,6 +244,11 @@ def main(argv=None) -> dict:
     result["cornell_lf_vs_embree_1t"] = cornell["lf_rays_per_s"] / cornell["embree_1t_rays_per_s"]
     result["cornell_unresolved_share"] = cornell["hiz_unresolved_share"]
     result["hiz_vs_two_level_steps"] = cornell["steps_hiz"] / cornell["steps_two_level"]
+    n_h = max(args.rays // 4, 500)
+    steps = hierarchy_steps(load_scene("cornell_box"), (4, 4, 4), (128, 256), n_h)
+    result["cornell_hierarchy_steps"] = steps
+    for r in (128, 256):
+        result[f"hiz_vs_two_level_steps_r{r}"] = steps[f"r{r}"]["hiz_vs_two_level_steps"]
     try:
         sponza_scene = load_scene("crytek_sponza")
     except Exception as e:  # the scene lives outside the repository
@@ -230,6 +261,10 @@ def main(argv=None) -> dict:
         result["sponza_lf_rays_per_s"] = sponza["lf_rays_per_s"]
         result["sponza_lf_vs_embree_1t"] = sponza["lf_rays_per_s"] / sponza["embree_1t_rays_per_s"]
         result["sponza_hiz_vs_two_level_steps"] = sponza["steps_hiz"] / sponza["steps_two_level"]
+        steps = hierarchy_steps(sponza_scene, (8, 4, 4), (128, 256), n_h)
+        result["sponza_hierarchy_steps"] = steps
+        for r in (128, 256):
+            result[f"sponza_hiz_vs_two_level_steps_r{r}"] = steps[f"r{r}"]["hiz_vs_two_level_steps"]
     ev = cornell_eval(load_scene("cornell_box"), quick=args.quick)
     result["cornell_eval"] = ev
     result["cornell_glossy_mse"] = ev["mse_glossy_indirect"]

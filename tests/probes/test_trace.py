@@ -15,16 +15,15 @@ import jax.numpy as jnp
 import numpy as np
 import pytest
 
-from probeplace._core import ConfigError, ProbeSet
+from probeplace._core import ConfigError, ProbeSet, oct_decode, texel_directions
 from probeplace.geometry import BruteForceCaster
 from probeplace.probes import BakeConfig, bake_probes
-from probeplace.probes._index import grid_index, voxel_index
+from probeplace.probes._index import VoxelIndex, grid_index, voxel_index
 from probeplace.probes._trace import (
     HIT,
     RAY_HIT,
     RAY_MISS,
     RAY_UNRESOLVED,
-    UNKNOWN,
     TraceConfig,
     make_tracer,
     trace_light_field,
@@ -97,17 +96,211 @@ def test_single_probe_hits_planar_walls_exactly(room, hierarchy):
     assert f(jnp.asarray(o, jnp.float32), jnp.asarray(d, jnp.float32))[1].dtype == jnp.float32
 
 
-def test_back_faces_are_rejected(room):
+def test_surfel_side_is_judged_from_the_probe(room):
+    """Front/back is judged with the normal turned toward the probe: probes whose normal maps all point
+    the other way (raw normals of sheets seen from behind, or a bake that turned them) trace the same."""
     scene, lf = room
-    tr = make_tracer(lf, scene.bounds, config=TraceConfig(hierarchy="flat"))
-    flipped = eqx.tree_at(lambda x: x.surfel_n, tr, -tr.surfel_n)  # every wall now faces away from rays
-    o = jnp.asarray([[2.0, 1.5, 2.5]], jnp.float32)
+    flipped = eqx.tree_at(lambda x: x.normal, lf, -lf.normal)
+    o = jnp.asarray([2.0, 1.5, 2.5], jnp.float32)
     d = jnp.asarray(_unit(np.random.default_rng(2).normal(size=(50, 3))), jnp.float32)
     f = jax.vmap(
-        lambda tr, d: trace_probe(tr, jnp.int32(0), o[0], d, jnp.float32(0), jnp.float32(20.0)), (None, 0)
+        lambda tr, d: trace_probe(tr, jnp.int32(0), o, d, jnp.float32(0), jnp.float32(20.0)), (None, 0)
     )
-    assert np.mean(np.asarray(f(tr, d)[0]) == HIT) > 0.9
-    assert np.all(np.asarray(f(flipped, d)[0]) == UNKNOWN)
+    for hierarchy in ("flat", "hiz"):
+        cfg = TraceConfig(hierarchy=hierarchy)
+        st, t, _, _ = f(make_tracer(lf, scene.bounds, config=cfg), d)
+        st_f, t_f, _, _ = f(make_tracer(flipped, scene.bounds, config=cfg), d)
+        assert np.mean(np.asarray(st) == HIT) > 0.9
+        np.testing.assert_array_equal(np.asarray(st_f), np.asarray(st))
+        np.testing.assert_array_equal(np.asarray(t_f), np.asarray(t))
+
+
+QUAD_Z = 0.0
+
+
+@pytest.fixture(scope="module")
+def quad_from_behind():
+    """One single-sided quad in the plane z = 0 whose winding faces +z, and one probe below it (z < 0),
+    which sees only its back."""
+    v = np.array([[-1.0, -1.0, 0.0], [1.0, -1.0, 0.0], [1.0, 1.0, 0.0], [-1.0, 1.0, 0.0]])
+    f = np.array([[0, 1, 2], [0, 2, 3]])
+    mats = make_materials(["sheet"], np.array([[0.5, 0.5, 0.5]]))
+    scene = build_scene("quad", v, f, np.zeros(2, int), mats)
+    lf = _bake(scene, np.array([[0.1, -0.2, -1.0]]), 32)
+    return scene, lf
+
+
+@pytest.mark.parametrize("flip_normals", [False, True])
+def test_quad_seen_from_behind_is_hit(quad_from_behind, flip_normals):
+    """Item 1 of issue 16: rays from the probe's side of a sheet whose winding faces away from the only
+    probe hit it where exact casting does (the reference caster is two-sided), whether or not the bake
+    has turned the stored normal toward the probe."""
+    scene, lf = quad_from_behind
+    if flip_normals:
+        lf = eqx.tree_at(lambda x: x.normal, lf, -lf.normal)
+    n_up = np.asarray(scene.vertices)[np.asarray(scene.faces)]
+    n_up = np.cross(n_up[:, 1] - n_up[:, 0], n_up[:, 2] - n_up[:, 0])
+    assert np.all(n_up[:, 2] > 0)  # the winding faces away from the probe
+    rng = np.random.default_rng(4)
+    o = np.concatenate([rng.uniform(-0.4, 0.4, (200, 2)), rng.uniform(-0.41, -0.21, (200, 1))], axis=1)
+    # Targets well inside the quad: within half a texel of its silhouette the probe cannot tell whether
+    # the sheet is there (an ambiguous cell), and with one probe such rays are rightly unresolved.
+    target = np.concatenate([rng.uniform(-0.6, 0.6, (200, 2)), np.zeros((200, 1))], axis=1)
+    d = _unit(target - o)
+    exact = (QUAD_Z - o[:, 2]) / d[:, 2]
+    ref = BruteForceCaster(scene).closest_hit(jnp.asarray(o, jnp.float32), jnp.asarray(d, jnp.float32))
+    np.testing.assert_allclose(np.asarray(ref.t), exact, rtol=1e-5)  # the reference hits the back face
+    bounds = jnp.asarray([[-1.5, -1.5, -1.5], [1.5, 1.5, 0.5]], jnp.float32)
+    for hierarchy in ("flat", "hiz"):
+        tr = make_tracer(lf, bounds, config=TraceConfig(hierarchy=hierarchy))
+        out = trace_light_field(tr, jnp.asarray(o, jnp.float32), jnp.asarray(d, jnp.float32))
+        assert np.all(np.asarray(out.status) == RAY_HIT)
+        # A planar surfel is the quad's plane: the crossing is exact up to float32 rounding of the
+        # probe-relative coordinates (|q| ≲ 2, so a few ulps of 2).
+        np.testing.assert_allclose(np.asarray(out.t), exact, rtol=0, atol=64 * np.finfo(np.float32).eps)
+
+
+# ------------------------------------------------------------------------------------ an occluder
+# A far floor (z = 0), a small near sheet (z = 1, |x|, |y| ≤ 0.5) and a ceiling (z = 4), all single-sided,
+# baked at 16² so that texels are wide: a texel straddling the sheet's silhouette has its centre sample
+# on the sheet or on the floor, and McGuire's one-surfel-per-texel model extends that plane over the whole
+# texel.
+SHEET_Z, SHEET_HALF = 1.0, 0.5
+R_OCC = 16
+
+
+def _sheet(v, f, x0, x1, y0, y1, z, up):
+    k = len(v)
+    v += [[x0, y0, z], [x1, y0, z], [x1, y1, z], [x0, y1, z]]
+    f += [[k, k + 1, k + 2], [k, k + 2, k + 3]] if up else [[k, k + 2, k + 1], [k, k + 3, k + 2]]
+
+
+@pytest.fixture(scope="module")
+def occluder():
+    v, f = [], []
+    _sheet(v, f, -3.0, 3.0, -3.0, 3.0, 0.0, True)
+    _sheet(v, f, -SHEET_HALF, SHEET_HALF, -SHEET_HALF, SHEET_HALF, SHEET_Z, True)
+    _sheet(v, f, -3.0, 3.0, -3.0, 3.0, 4.0, False)
+    mats = make_materials(["grey"], np.array([[0.5, 0.5, 0.5]]))
+    scene = build_scene("occluder", np.array(v), np.array(f), np.zeros(len(f), int), mats)
+    # Probe 0 looks down on the sheet; probes 1–4 see the floor beside and under it from the sides.
+    side = [[1.6, 0.03, 0.6], [-1.6, 0.03, 0.6], [0.03, 1.6, 0.6], [0.03, -1.6, 0.6]]
+    lf = _bake(scene, np.array([[0.05, 0.02, 3.0], *side]), R_OCC)
+    return scene, lf
+
+
+def _one_voxel_index(first: int) -> VoxelIndex:
+    """One voxel whose only candidate is probe ``first`` (the others are reachable by the fallback)."""
+    cand = -np.ones((1, 1, 1, 4), np.int32)
+    cand[0, 0, 0, 0] = first
+    return VoxelIndex(
+        origin=jnp.full(3, -10.0, jnp.float32),
+        voxel_size=jnp.full(3, 20.0, jnp.float32),
+        candidates=jnp.asarray(cand),
+        dims=(1, 1, 1),
+    )
+
+
+def _rays_past_the_edge(lf):
+    """Rays that cross the sheet's plane *beside* the sheet but inside the cone of a probe-0 texel whose
+    centre sample is on the sheet (so McGuire's surfel extends the sheet there), then hit the floor:
+    (origins, directions, t at the sheet's plane, exact t)."""
+    p0 = np.asarray(lf.pos_world[0], np.float64)
+    dist = np.asarray(lf.distance[0, 1:-1, 1:-1], np.float64)
+    w = np.asarray(texel_directions(R_OCC), np.float64)
+    to_plane = (SHEET_Z - p0[2]) / np.minimum(w[..., 2], -1e-9)  # distance to z = 1 along each centre
+    q_c = p0 + to_plane[..., None] * w
+    on_sheet = (
+        (w[..., 2] < 0)
+        & np.isclose(dist, to_plane, rtol=1e-4)
+        & np.all(np.abs(q_c[..., :2]) < SHEET_HALF, -1)
+    )
+    rows, cols = np.nonzero(on_sheet)
+    f = (np.arange(6) + 0.5) / 6 - 0.5  # sub-texel offsets
+    fu, fv = (a.reshape(-1) for a in np.meshgrid(f, f, indexing="ij"))
+    u = ((cols[:, None] + 0.5 + fu[None]) * 2 / R_OCC - 1).reshape(-1)
+    v = ((rows[:, None] + 0.5 + fv[None]) * 2 / R_OCC - 1).reshape(-1)
+    wq = np.asarray(oct_decode(jnp.asarray(np.stack([u, v], -1), jnp.float32)), np.float64)
+    q = p0 + ((SHEET_Z - p0[2]) / np.minimum(wq[:, 2], -1e-9))[:, None] * wq
+    q = q[np.any(np.abs(q[:, :2]) > SHEET_HALF + 0.01, axis=1)]  # beside the sheet
+    d = -_unit(np.broadcast_to([0.3, 0.2, 1.0], q.shape))
+    o = q - 1.2 * d
+    return o, d, np.full(len(q), 1.2), 1.2 - q[:, 2] / d[:, 2]
+
+
+def test_silhouette_texels_make_no_hit_in_free_space(occluder):
+    """Item 2 of issue 16: a texel that holds the sheet's edge and the floor is not one surfel. McGuire's
+    model crosses the sheet's plane extended beside the sheet (a hit in free space); ours calls the
+    ambiguous half-texel unknown, so with one probe every ray is the exact floor hit or unresolved, and
+    the side probes, which see the gap, resolve most of them at the floor."""
+    scene, lf = occluder
+    o, d, at_sheet, exact = _rays_past_the_edge(lf)
+    assert len(o) > 20
+    oj, dj = jnp.asarray(o, jnp.float32), jnp.asarray(d, jnp.float32)
+    one = dict(index=_one_voxel_index(0))
+    mcguire = make_tracer(lf, scene.bounds, config=TraceConfig(edge_tol=None, fallback_probes=0), **one)
+    out = trace_light_field(mcguire, oj, dj)
+    st, t = np.asarray(out.status), np.asarray(out.t)
+    assert np.mean((st == RAY_HIT) & np.isclose(t, at_sheet, rtol=1e-4)) > 0.5  # the defect, shown
+    for hierarchy in ("flat", "hiz"):
+        cfg = TraceConfig(hierarchy=hierarchy, fallback_probes=0)
+        out = trace_light_field(make_tracer(lf, scene.bounds, config=cfg, **one), oj, dj)
+        st, t = np.asarray(out.status), np.asarray(out.t)
+        assert set(np.unique(st)) <= {RAY_HIT, RAY_UNRESOLVED}
+        # A floor texel's surfel is the floor's plane: exact up to float32 rounding (|q| ≲ 4).
+        np.testing.assert_allclose(t[st == RAY_HIT], exact[st == RAY_HIT], rtol=0, atol=1e-5)
+    out = trace_light_field(make_tracer(lf, scene.bounds), oj, dj)  # all probes
+    st, t = np.asarray(out.status), np.asarray(out.t)
+    assert np.mean(st == RAY_HIT) > 0.5
+    np.testing.assert_allclose(t[st == RAY_HIT], exact[st == RAY_HIT], rtol=0, atol=1e-5)
+
+
+def test_fallback_probe_that_sees_the_point_resolves(occluder):
+    """Item 3 of issue 16: when the index's candidates are spent, the ray continues in a probe that sees
+    its last free point. Rays under the sheet are hidden from probe 0 (the index's only candidate);
+    the side probes see them."""
+    scene, lf = occluder
+    rng = np.random.default_rng(6)
+    n = 200
+    o = np.stack([rng.uniform(0.75, 1.1, n), rng.uniform(-0.2, 0.2, n), rng.uniform(0.4, 0.6, n)], axis=1)
+    target = np.stack([rng.uniform(-0.4, 0.2, n), rng.uniform(-0.2, 0.2, n), np.zeros(n)], axis=1)
+    d = _unit(target - o)
+    exact = -o[:, 2] / d[:, 2]
+    oj, dj = jnp.asarray(o, jnp.float32), jnp.asarray(d, jnp.float32)
+    index = _one_voxel_index(0)
+    alone = trace_light_field(
+        make_tracer(lf, scene.bounds, index=index, config=TraceConfig(fallback_probes=0)), oj, dj
+    )
+    assert np.all(np.asarray(alone.status) == RAY_UNRESOLVED)
+    assert np.all(np.asarray(alone.fallback) == 0)
+    out = trace_light_field(make_tracer(lf, scene.bounds, index=index), oj, dj)
+    st = np.asarray(out.status)
+    assert np.mean(st == RAY_HIT) > 0.95
+    hit = st == RAY_HIT
+    np.testing.assert_allclose(np.asarray(out.t)[hit], exact[hit], rtol=0, atol=1e-5)
+    assert np.all(np.asarray(out.probe)[hit] != 0)
+    assert np.all(np.asarray(out.fallback)[hit] >= 1)
+    assert np.all(np.asarray(out.probes_tried) <= TraceConfig().max_probes)
+
+
+def test_geometry_maps_need_not_match_the_radiance_resolution(room):
+    """The tracer marches the distance/normal maps at their own resolution: probes with 16² radiance and
+    32² geometry trace exactly as the 32² bake, and the texel indexes the geometry map."""
+    scene, lf32 = room
+    lf16 = _bake(scene, np.asarray(lf32.pos_world), 16)
+    mixed = eqx.tree_at(lambda x: (x.distance, x.normal), lf16, (lf32.distance, lf32.normal))
+    if getattr(lf16, "backface", None) is not None:
+        mixed = eqx.tree_at(lambda x: x.backface, mixed, lf32.backface)
+    assert mixed.radiance_res == 16
+    rng = np.random.default_rng(7)
+    o = jnp.asarray(rng.uniform([0.3, 0.3, 0.3], ROOM_HI - 0.3, (200, 3)), jnp.float32)
+    d = jnp.asarray(_unit(rng.normal(size=(200, 3))), jnp.float32)
+    a = trace_light_field(make_tracer(mixed, scene.bounds), o, d)
+    b = trace_light_field(make_tracer(lf32, scene.bounds), o, d)
+    assert make_tracer(mixed, scene.bounds).res == 32
+    for f in ("status", "t", "probe", "texel", "steps"):
+        np.testing.assert_array_equal(np.asarray(getattr(a, f)), np.asarray(getattr(b, f)))
+    assert np.asarray(a.texel).max() >= 16  # a 32² texel index
 
 
 def test_config_errors():
@@ -208,7 +401,10 @@ def test_cornell_grid_agrees_with_exact_casting(cornell_grid):
     out = trace_light_field(tr, o, d)
     resolved = np.asarray(out.status) != RAY_UNRESOLVED
     agree = _agreement(scene, pos, R_CORNELL, o, d, out)
-    assert (~resolved).mean() < 0.01
+    # 2%, not 1% as before issue 16: the half-texels next to silhouettes (the blocks' edges, the box's
+    # open front) are unknown rather than guessed; the probes that see the last free point resolve most.
+    # Measured: 1.4% unresolved, 99.4% agreement (McGuire's one-surfel model: 0.8%, 99.6%).
+    assert (~resolved).mean() < 0.02
     assert agree[resolved].mean() >= 0.99
 
 
@@ -237,9 +433,10 @@ def test_voxel_index_tracer_agrees(cornell_grid):
     tr = make_tracer(lf, scene.bounds, index=index)
     out = trace_light_field(tr, o, d)
     resolved = np.asarray(out.status) != RAY_UNRESOLVED
-    # Slightly looser than the grid test (1500 rays, not 6000: one ray is 0.07%).
-    assert (~resolved).mean() < 0.015
-    assert _agreement(scene, pos, R_CORNELL, o, d, out)[resolved].mean() >= 0.985
+    # Looser than the grid test (1500 rays, not 6000: one ray is 0.07%; the fallback probes are not a
+    # cage, so farther and coarser). Measured: 2.8% unresolved, 98.4% agreement.
+    assert (~resolved).mean() < 0.035
+    assert _agreement(scene, pos, R_CORNELL, o, d, out)[resolved].mean() >= 0.98
 
 
 def test_unresolved_rays_are_flagged(cornell_grid):
