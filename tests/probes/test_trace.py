@@ -283,6 +283,25 @@ def test_fallback_probe_that_sees_the_point_resolves(occluder):
     assert np.all(np.asarray(out.probes_tried) <= TraceConfig().max_probes)
 
 
+def test_hierarchies_agree_where_cells_are_ambiguous(occluder):
+    """The lower and upper bounds cover every candidate surfel of an ambiguous cell: flat (the reference:
+    every fine cell), two-level and hi-Z give the same status and t."""
+    scene, lf = occluder
+    rng = np.random.default_rng(8)
+    o = jnp.asarray(rng.uniform([-1.5, -1.5, 0.1], [1.5, 1.5, 3.9], (400, 3)), jnp.float32)
+    d = jnp.asarray(_unit(rng.normal(size=(400, 3))), jnp.float32)
+    outs = {
+        h: trace_light_field(make_tracer(lf, scene.bounds, config=TraceConfig(hierarchy=h)), o, d)
+        for h in ("flat", "two_level", "hiz")
+    }
+    assert np.mean(np.asarray(outs["flat"].status) == RAY_HIT) > 0.3  # the sides are open: misses too
+    for h in ("two_level", "hiz"):
+        np.testing.assert_array_equal(np.asarray(outs[h].status), np.asarray(outs["flat"].status))
+        # rtol: the hit is the same plane crossing, computed from a cell interval split differently.
+        np.testing.assert_allclose(np.asarray(outs[h].t), np.asarray(outs["flat"].t), rtol=1e-4)
+    assert np.mean(np.asarray(outs["hiz"].steps)) < np.mean(np.asarray(outs["flat"].steps))
+
+
 def test_geometry_maps_need_not_match_the_radiance_resolution(room):
     """The tracer marches the distance/normal maps at their own resolution: probes with 16² radiance and
     32² geometry trace exactly as the 32² bake, and the texel indexes the geometry map."""

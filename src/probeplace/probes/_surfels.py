@@ -23,9 +23,10 @@ surface when
 or the texel's own ray escapes (no surfel to extend: its cells are never ambiguous, and a surface edge
 reaching into them goes unseen, as in McGuire's model). Anything else is a depth discontinuity
 (silhouette) or a surface beside sky, whose edge may lie anywhere in the half-texel next to it. In an
-ambiguous cell the probe cannot tell which surface a point belongs to, so the tracer accepts only
-"in front of every candidate surfel" (free) and calls everything else unknown — neither a hit in free space nor a guess; another probe decides (McGuire §4: "when a probe knows that it
-does not have the required visibility information").
+ambiguous cell the probe cannot tell which surface a point belongs to, so the tracer accepts only "in
+front of every candidate surfel" (free) and "every candidate met at about one point" (a hit), and calls
+everything else unknown — neither a hit in free space nor a guess; another probe decides (McGuire §4:
+"when a probe knows that it does not have the required visibility information").
 
 **Bounds.** For the hierarchy, each cell carries a lower bound of the radial distance of its candidate
 surfels (its own; in an ambiguous cell also the footprint neighbours') over its cone: each plane sampled
