@@ -4,7 +4,8 @@
   around a point is found by arithmetic; the tracer orders them itself (nearest the ray's line first,
   then (i+3) mod 8).
 * :class:`VoxelIndex` — any probe set (Wang et al. 2019 §4.1): a voxel grid over the scene bounds holding
-  up to K candidate probes per voxel, ranked. Built in NumPy once, looked up in JAX.
+  up to K candidate probes per voxel, ranked. Built in NumPy once, looked up in JAX. The same structure,
+  built by :func:`nearest_index`, lists each voxel's nearest probes for the tracer's fallback search.
 
 Wang's influence region: for each of the six faces of a probe's bounding cube, the influence distance is
 the *median* of the probe's radial distances over the texels whose direction has that face as major axis.
@@ -22,6 +23,7 @@ import equinox as eqx
 import jax.numpy as jnp
 import numpy as np
 from jaxtyping import Array, Float, Int
+from scipy.spatial import cKDTree
 
 from .._core import ConfigError, LightFieldProbes, oct_encode, strip_border, texel_directions
 
@@ -215,6 +217,40 @@ def voxel_index(
         key = tier * 1e30 + np.where(tier > 0, score, 1.0 / np.maximum(d, 1e-12))
         order = np.argsort(-key, axis=0)[:k]  # (k, v)
         cand[s : s + chunk, : order.shape[0]] = use[order].T
+    return VoxelIndex(
+        origin=jnp.asarray(lo, jnp.float32),
+        voxel_size=jnp.full((3,), h, jnp.float32),
+        candidates=jnp.asarray(cand.reshape(*dims, k)),
+        dims=dims,
+    )
+
+
+def nearest_index(
+    pos: np.ndarray, usable: np.ndarray, bounds, *, radius: float, k: int = 32, max_voxels_per_axis: int = 64
+) -> VoxelIndex:
+    """For each voxel of a grid over ``bounds`` (voxel side ≈ radius / 2), the ``k`` usable probes nearest
+    its centre among those within ``radius`` + half the voxel's diagonal (so every probe within
+    ``radius`` of a point of the voxel is a candidate unless more than ``k`` are), nearest first, -1
+    padded. The light-field tracer's fallback search reads it instead of scanning every probe.
+
+    Raises:
+        ConfigError: ``radius`` or ``k`` not positive.
+    """
+    if not radius > 0 or k < 1:
+        raise ConfigError(f"nearest_index needs radius > 0 and k ≥ 1, got {radius}, {k}")
+    b = np.asarray(bounds, np.float64)
+    lo, ext = b[0], np.maximum(b[1] - b[0], 1e-9)
+    h = max(0.5 * radius, float(ext.max()) / max_voxels_per_axis)
+    dims = tuple(int(max(1, np.ceil(e / h - 1e-6))) for e in ext)
+    gi = np.stack(np.meshgrid(*(np.arange(n) for n in dims), indexing="ij"), axis=-1).reshape(-1, 3)
+    centres = lo + (gi + 0.5) * h
+    use = np.flatnonzero(np.asarray(usable))
+    cand = -np.ones((len(centres), k), np.int32)
+    if len(use):
+        reach = radius + 0.5 * h * np.sqrt(3.0)
+        dist, idx = cKDTree(np.asarray(pos, np.float64)[use]).query(centres, k=min(k, len(use)))
+        dist, idx = dist.reshape(len(centres), -1), idx.reshape(len(centres), -1)
+        cand[:, : idx.shape[1]] = np.where(dist <= reach, use[np.minimum(idx, len(use) - 1)], -1)
     return VoxelIndex(
         origin=jnp.asarray(lo, jnp.float32),
         voxel_size=jnp.full((3,), h, jnp.float32),

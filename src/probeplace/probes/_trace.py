@@ -62,13 +62,13 @@ from scipy.spatial import cKDTree
 
 from .._core import ConfigError, LightFieldProbes, add_border, oct_encode, texel_directions
 from ._bake import _warn_probe_layout
-from ._index import GridIndex, VoxelIndex, grid_index, voxel_index
+from ._index import GridIndex, VoxelIndex, grid_index, nearest_index, voxel_index
 from ._march import HIT, MISS, UNKNOWN, _candidates, trace_probe
 from ._surfels import all_probe_cells
 
 #: Status codes of :class:`TraceResult` (``UNRESOLVED``: no probe could decide).
 RAY_MISS, RAY_HIT, RAY_UNRESOLVED = 0, 1, 2
-_FALLBACK_POOL = 32  # nearest probes tested per fallback pick
+_FALLBACK_POOL = 32  # nearest probes a fallback pick tests (per voxel of ``nearest_index``)
 HIERARCHIES = ("hiz", "two_level", "flat")
 
 
@@ -190,6 +190,7 @@ class LightFieldTracer(eqx.Module):
             bounds). The margin lets a ray that slips through a wall inside one texel (whose surfel is
             another surface) go on to be *behind* that wall, hence unknown, rather than a false miss.
         index: the probe-selection index.
+        near: each voxel's nearest usable probes, for the fallback search (:func:`nearest_index`).
         res: interior geometry-map resolution R (static).
         config: settings (static).
     """
@@ -207,6 +208,7 @@ class LightFieldTracer(eqx.Module):
     t_far: Float[Array, ""]
     bounds: Float[Array, "2 3"]
     index: GridIndex | VoxelIndex
+    near: VoxelIndex
     res: int = eqx.field(static=True)
     config: TraceConfig = eqx.field(static=True)
 
@@ -343,6 +345,8 @@ def make_tracer(
         big=big,
     )
     margin = config.bounds_margin * jnp.max(b[1] - b[0])
+    usable = np.asarray(lf.active) & ~np.asarray(lf.inside)
+    spacing = _spacing(pos[usable])
     return LightFieldTracer(
         pos_world=jnp.asarray(lf.pos_world, jnp.float32),
         usable=jnp.asarray(lf.active) & ~jnp.asarray(lf.inside),
@@ -352,11 +356,12 @@ def make_tracer(
         ambiguous=ambiguous,
         bound_flat=_mip_flat(lower, "min"),
         upper_flat=_mip_flat(upper, "max"),
-        spacing=jnp.asarray(_spacing(pos[np.asarray(lf.active) & ~np.asarray(lf.inside)]), jnp.float32),
+        spacing=jnp.asarray(spacing, jnp.float32),
         far=far,
         t_far=jnp.linalg.norm(b[1] - b[0]) * 1.01,
         bounds=jnp.stack([b[0] - margin, b[1] + margin]),
         index=index,
+        near=nearest_index(pos, usable, b, radius=config.fallback_radius * spacing, k=_FALLBACK_POOL),
         res=res,
         config=config,
     )
@@ -423,15 +428,14 @@ def _seeing_probe(tr: LightFieldTracer, x: Float[Array, "3"], visited) -> Int[Ar
     """The untried probe nearest x, within ``fallback_radius`` probe spacings, that sees x (:func:`_sees`),
     or -1: the fallback when the index's candidates are spent. A far probe's texels are too coarse to
     vouch for the space around x (a surface a few centimetres from x is sub-texel to it), hence the
-    radius; the ``_FALLBACK_POOL`` nearest are tested."""
-    n = tr.pos_world.shape[0]
-    every = jnp.arange(n, dtype=jnp.int32)
-    r2 = jnp.sum((tr.pos_world - x[None, :]) ** 2, axis=-1)
-    ok = tr.usable & ~jnp.any(every[:, None] == visited[None, :], axis=1)
+    radius. The candidates are those :func:`nearest_index` lists for x's voxel."""
+    pool, _ = tr.near.lookup(x)
+    q = jnp.maximum(pool, 0)
+    r2 = jnp.sum((tr.pos_world[q] - x[None, :]) ** 2, axis=-1)
+    ok = (pool >= 0) & ~jnp.any(pool[:, None] == visited[None, :], axis=1)
     ok = ok & (r2 <= (tr.config.fallback_radius * tr.spacing) ** 2)
-    neg, pool = jax.lax.top_k(jnp.where(ok, -r2, -jnp.inf), min(_FALLBACK_POOL, n))
-    sees = jnp.isfinite(neg) & _sees(tr, pool.astype(jnp.int32), x)
-    k = jnp.argmax(sees)  # top_k is sorted: the first seeing one is the nearest
+    sees = ok & _sees(tr, pool, x)
+    k = jnp.argmin(jnp.where(sees, r2, jnp.inf)).astype(jnp.int32)
     return jnp.where(sees[k], pool[k], -1).astype(jnp.int32)
 
 
