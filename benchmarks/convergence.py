@@ -1,7 +1,7 @@
 """Convergence of the probe error with probe density and map resolution, and what the error is made of.
 
     .venv/bin/python benchmarks/convergence.py [--quick] [--scenes cornell sponza] [--bake-spp N]
-        [--n-sub N] [--res 16 32 64] [--grids 4x4x4 8x4x4] [--seeds 3] [--fresh]
+        [--n-sub N] [--res 16 32 64] [--grids 4x4x4 8x4x4] [--seeds 3] [--fresh] [--geometry-res N]
 
 For each scene (Cornell box "front", Crytek Sponza "CameraMain"), uniform grids of increasing density
 (cell centres of the scene box) × radiance-map resolutions, baked with the path tracer
@@ -25,7 +25,8 @@ Targets (issue 16), each reported as ``targets: {key: {value, target, met}}``:
 ``_diffuse_over_black`` < 1; ``sponza_grid128_glossy_over_black`` < 1 (8×4×4, 128 probes) and
 ``sponza_grid128_seed_cv`` ≤ 0.10 (coefficient of variation, population σ / mean, of the glossy MSE over
 ``--seeds`` bake + evaluation seeds). Keys of cells not run (``--quick``, or Sponza absent) are null with
-a reason in ``skipped``. Last stdout line: the JSON, also written to benchmarks/results/convergence.json.
+a reason in ``skipped``. Last stdout line: the JSON, also written to benchmarks/results/convergence.json
+(``convergence_geometry<N>.json`` with ``--geometry-res N``: geometry maps at least N², radiance as given).
 """
 
 from __future__ import annotations
@@ -137,7 +138,8 @@ class Bench:
             "bake_spp": self.args.bake_spp,
             "n_sub": self.args.n_sub,
             "bake_depth": c.max_depth - 1,
-        }
+            "first_hit_lobes": "diffuse",  # what texels store (probes.path_traced_radiance's default)
+        } | ({"geometry_res": self.args.geometry_res} if self.args.geometry_res else {})
 
     def steps(self, seed: int):
         """Reference, primary samples and CRN reference of one seed (computed once, shared by cells)."""
@@ -160,7 +162,10 @@ class Bench:
         a = self.args
         pos = grid_positions(self.scene, dims)
         per_batch = int(max(1, min(len(pos), (1 << 18) // (res * res * a.n_sub * a.n_sub))))
-        cfg = BakeConfig(radiance_res=res, n_sub=a.n_sub, probes_per_batch=per_batch, progress=False)
+        geo = max(res, a.geometry_res) if a.geometry_res else None
+        cfg = BakeConfig(
+            radiance_res=res, geometry_res=geo, n_sub=a.n_sub, probes_per_batch=per_batch, progress=False
+        )
         fn = path_traced_radiance(
             self.scene, spp=a.bake_spp, max_depth=self.config.max_depth - 1, caster=self.caster
         )
@@ -232,6 +237,8 @@ def summarise(m: dict) -> dict:
         "mse_glossy_perfect_trace": m["mse_glossy_perfect_trace"],
         "perfect_trace_over_floor": ratio(m["mse_glossy_perfect_trace"], m["noise_floor_glossy_indirect"]),
         "perfect_trace_over_black": ratio(m["mse_glossy_perfect_trace"], m["mse_black_glossy_indirect"]),
+        "mse_glossy_view_dependence": m["mse_glossy_view_dependence"],
+        "view_dependence_over_black": ratio(m["mse_glossy_view_dependence"], m["mse_black_glossy_indirect"]),
         "trace_share": m["mse_glossy_trace_share"],
         "trace_excess": m["trace_excess"],
         "by_status": m["mse_glossy_by_status"],
@@ -270,7 +277,12 @@ def run_scene(key: str, args, plan: dict, result: dict) -> None:
             cells[f"{grid}_r{res}"] = c
             for f in ("mse_over_floor", "agreement", "unresolved", "trace_excess"):
                 result[f"{key}_{grid}_r{res}_{f}"] = c[f]
-            for f in ("glossy_over_black", "diffuse_over_black", "mse_glossy_perfect_trace"):
+            for f in (
+                "glossy_over_black",
+                "diffuse_over_black",
+                "mse_glossy_perfect_trace",
+                "view_dependence_over_black",
+            ):
                 result[f"{key}_{grid}_r{res}_{f}"] = c[f]
     result["cells"][key] = cells
     result["shared_steps_s"][key] = {str(s): v[3] for s, v in b.shared.items()}
@@ -314,6 +326,12 @@ def main(argv=None) -> dict:
     ap.add_argument("--seeds", type=int, default=3, help="bake + evaluation seeds of the 128-probe grid")
     ap.add_argument("--grid128-res", type=int, default=None, help="its map resolution (default 64; quick 16)")
     ap.add_argument("--fresh", action="store_true", help="recompute cached cells")
+    ap.add_argument(
+        "--geometry-res",
+        type=int,
+        default=None,
+        help="geometry maps at least this fine (BakeConfig.geometry_res; default: the radiance resolution)",
+    )
     args = ap.parse_args(argv)
     q = args.quick
     args.bake_spp = args.bake_spp or (4 if q else 8)
@@ -340,7 +358,8 @@ def main(argv=None) -> dict:
             result["skipped"].setdefault(k, "cell not run (--quick, --grids/--res or the scene is absent)")
     result["targets"] = targets(result)
     result["total_s"] = time.perf_counter() - t_all
-    write_result("convergence", result)
+    # A run with finer geometry maps is a variant: written beside the main figures, not over them.
+    write_result(f"convergence_geometry{args.geometry_res}" if args.geometry_res else "convergence", result)
     return result
 
 

@@ -41,24 +41,13 @@ OUT = ROOT / "results" / "trace_accuracy"
 
 
 def glossy_rays(scene, caster, view: str, width: int, height: int, spp: int, seed: int = 0):
-    """The evaluation's glossy rays (``evaluate._samples``): origins off the surface, GGX directions."""
-    from probeplace.evaluate._evaluate import _samples
-    from probeplace.render import camera_rays
-    from probeplace.render._sampling import path_uniforms
+    """The evaluation's glossy rays (``evaluate.sample_primary``): origins off the surface, GGX directions."""
+    from probeplace.evaluate import EvalConfig, sample_primary
 
     camera = scene.view(view) if view else scene.views[0]
-    seed_u = jnp.asarray(seed, jnp.uint32)
-    pix = jnp.repeat(jnp.arange(width * height, dtype=jnp.int32), spp)
-    smp = jnp.tile(jnp.arange(spp, dtype=jnp.int32), width * height)
-    pu = jax.jit(jax.vmap(path_uniforms, in_axes=(None, 0, 0, None)), static_argnums=3)
-    u0, u1 = pu(seed_u, pix, smp, 0), pu(seed_u, pix, smp, 1)
-    o, d = camera_rays(camera, width, height, pix, u0[:, 1:3])
-    hit = caster.closest_hit(o, d)
-    lo, hi = (np.asarray(b, np.float64) for b in scene.bounds)
-    offset_len = jnp.asarray(1e-4 * float(np.linalg.norm(hi - lo)), jnp.float32)
-    s = _samples(scene.materials, jnp.float32(1.0), offset_len, o, d, hit, u1)
-    keep = np.flatnonzero(np.asarray(s.valid) & (np.max(np.asarray(s.w_glossy), axis=1) > 0))
-    return np.asarray(s.origin)[keep], np.asarray(s.wi)[keep]
+    config = EvalConfig(width=width, height=height, glossy_spp=spp, progress=False)
+    prim = sample_primary(scene, camera, config, seed=seed, caster=caster)
+    return np.asarray(prim.origins), np.asarray(prim.directions)
 
 
 def grid_probes(scene, caster, dims, res: int):

@@ -195,7 +195,7 @@ class ProbeSet(eqx.Module):
 
 
 #: Version of the :class:`BakeSettings` record (bumped when its fields or their meaning change).
-BAKE_SETTINGS_VERSION = 1
+BAKE_SETTINGS_VERSION = 2  # 2: first_hit_lobes
 
 
 class BakeSettings(eqx.Module):
@@ -219,6 +219,12 @@ class BakeSettings(eqx.Module):
         key: the raw words of the bake's PRNG key (``jax.random.key_data``), for reproduction.
         scene: name of the scene the probes were baked in (static).
         radiance: ``"path_traced"`` or ``"custom"`` (static).
+        first_hit_lobes: what the surface a texel sees reflects toward the probe: ``"diffuse"`` (its
+            diffuse lobe only: view-independent radiance, right for any viewer; the default since version
+            2) or ``"all"`` (the whole BRDF: right only along the probe's own direction; version-1 files)
+            (``render.RenderConfig.first_hit_lobes``; static).
+        backend: the path tracer's backend, ``"jax"`` or ``"mitsuba"`` (``render.RenderConfig.backend``;
+            the same estimator, so provenance only; static).
         version: :data:`BAKE_SETTINGS_VERSION` of the record (static).
     """
 
@@ -230,11 +236,17 @@ class BakeSettings(eqx.Module):
     key: UInt32[Array, " k"]
     scene: str = eqx.field(static=True)
     radiance: str = eqx.field(static=True, default="path_traced")
+    first_hit_lobes: str = eqx.field(static=True, default="all")
+    backend: str = eqx.field(static=True, default="jax")
     version: int = eqx.field(static=True, default=BAKE_SETTINGS_VERSION)
 
     def __check_init__(self):
         if self.radiance not in ("path_traced", "custom"):
             raise ValueError(f"radiance must be 'path_traced' or 'custom', got {self.radiance!r}")
+        if self.first_hit_lobes not in ("all", "diffuse"):
+            raise ValueError(f"first_hit_lobes must be 'all' or 'diffuse', got {self.first_hit_lobes!r}")
+        if self.backend not in ("jax", "mitsuba"):
+            raise ValueError(f"backend must be 'jax' or 'mitsuba', got {self.backend!r}")
 
     def to_dict(self) -> dict:
         """Plain JSON-ready values (the form stored in the baked file and in run metrics)."""
@@ -242,6 +254,8 @@ class BakeSettings(eqx.Module):
             "version": self.version,
             "scene": self.scene,
             "radiance": self.radiance,
+            "first_hit_lobes": self.first_hit_lobes,
+            "backend": self.backend,
             "path_depth": int(self.path_depth),
             "spp": int(self.spp),
             "n_sub": int(self.n_sub),
@@ -268,6 +282,8 @@ class BakeSettings(eqx.Module):
             key=jnp.asarray(np.asarray(d["key"], np.uint32).reshape(-1)),
             scene=str(d["scene"]),
             radiance=str(d["radiance"]),
+            first_hit_lobes=str(d.get("first_hit_lobes", "all")),  # version 1 baked every lobe
+            backend=str(d.get("backend", "jax")),  # files from before the Mitsuba backend
             version=int(d["version"]),
         )
 
@@ -296,7 +312,9 @@ class LightFieldProbes(eqx.Module):
             where the ray escapes.
         backface: True where the probe sees that surface's back side by its geometric normal (winding),
             so a one-sided sheet seen from behind can still be told; False where the ray escapes.
-        distance: radial distance to that surface; ``far`` where the ray escapes.
+        distance: radial distance to that surface; ``far`` where the ray escapes. The geometry maps
+            (``distance``, ``normal``, ``backface`` and the distance MIPs) may have their own resolution,
+            finer than the radiance maps' (``probes.BakeConfig.geometry_res``).
         irradiance: cosine-convolved irradiance E(n) for a receiver normal n = texel direction.
         moments: cosine-power filtered E[r] and E[r²] (McGuire §5.2), for the Chebyshev visibility test.
         distance_min_mips: min-MIP chain of the interior distance map, level 1 (R/2) … coarsest.
@@ -311,14 +329,14 @@ class LightFieldProbes(eqx.Module):
     inside: Bool[Array, " n_probes"]
     radiance: Float[Array, "n_probes rb rb 3"]
     emission: Float[Array, "n_probes rb rb 3"]
-    normal: Float[Array, "n_probes rb rb 3"]
-    distance: Float[Array, "n_probes rb rb"]
+    normal: Float[Array, "n_probes gb gb 3"]
+    distance: Float[Array, "n_probes gb gb"]
     irradiance: Float[Array, "n_probes ib ib 3"]
     moments: Float[Array, "n_probes mb mb 2"]
     distance_min_mips: tuple[Float[Array, "n_probes _ _"], ...]
     distance_max_mips: tuple[Float[Array, "n_probes _ _"], ...]
     far: Float[Array, ""]
-    backface: Bool[Array, "n_probes rb rb"] | None = None
+    backface: Bool[Array, "n_probes gb gb"] | None = None
     bake: BakeSettings | None = None
 
     def __check_init__(self):

@@ -59,7 +59,6 @@ from ._steps import (
     PrimarySamples,
     ProbeShading,
     ReferenceImages,
-    _samples,  # noqa: F401  (experiments/trace_accuracy.py reads the glossy rays through it)
     crn_reference,
     perfect_trace,
     render_reference,
@@ -150,6 +149,59 @@ def evaluate(
     return score(scene, lf, view, config, seed, ref, prim, crn, shading, perfect)
 
 
+def _light_leak(ref_diffuse, probe_d, hit_px, threshold: float) -> tuple[float, np.ndarray]:
+    """Probe diffuse energy on pixels the reference leaves unlit (module docstring, "Light leak"):
+    (energy per pixel, mask of those pixels)."""
+    ref_lum = np.asarray(luminance(jnp.asarray(ref_diffuse, jnp.float32)), np.float64)
+    pr_lum = np.asarray(luminance(jnp.asarray(probe_d, jnp.float32)), np.float64)
+    mean_lum = float(ref_lum[hit_px].mean()) if hit_px.any() else 0.0
+    dark = hit_px & (ref_lum <= threshold * max(mean_lum, 0))
+    return float(np.sum(np.where(dark, pr_lum, 0.0)) / dark.size), dark
+
+
+def _glossy_breakdown(scene, config: EvalConfig, prim, crn, shading, perfect, imgs) -> dict:
+    """The glossy error taken apart (``_decompose.py``, docs/evaluate.md): perfect trace, view
+    dependence, trace share, split by ray status, agreement, relative MSEs and bootstrap intervals."""
+    S = prim.spp
+    probe_g, crn_ref_g, perfect_g, view_indep_g = imgs
+    st = shading.status
+    gl = st >= 0
+    n_gl = int(gl.sum())
+    lo, hi = (np.asarray(b, np.float64) for b in scene.bounds)
+    terms = glossy_terms(prim.w_glossy, shading.glossy, crn.radiance, perfect.radiance, st, S)
+    agree, n_agree = hit_agreement(
+        shading.t, perfect.t_exact, st, rtol=config.agreement_rtol, atol=1e-4 * float(np.linalg.norm(hi - lo))
+    )
+    n_exact = int(np.sum(gl & np.isfinite(perfect.t_exact)))
+    boot = lambda v: bootstrap_ci(v, n_resamples=config.bootstrap_resamples, seed=0)
+    rel = lambda a, b: relative_mse(a, b, eps=config.relmse_eps)
+    return {
+        "glossy_rays": n_gl,
+        "unresolved_share": float(np.mean(st[gl] == RAY_UNRESOLVED)) if n_gl else 0.0,
+        "mse_glossy_perfect_trace": terms["mse_perfect_trace"],
+        # What even exact probes storing view-independent radiance miss: the specular lobe of the surface a
+        # glossy ray hits, toward the viewer (the CRN reference without that lobe, _steps.py).
+        "mse_glossy_view_dependence": _mse(view_indep_g, crn_ref_g),
+        "mse_glossy_trace_share": terms["trace_share"],
+        "trace_excess": terms["trace_excess"],
+        "mse_glossy_by_status": terms["by_status"],
+        "mse_glossy_resolved_only": terms["resolved_only"],
+        "glossy_status_share": {
+            name: (float(np.mean(st[gl] == k)) if n_gl else 0.0) for k, name in STATUS_NAMES.items()
+        },
+        "glossy_hit_agreement": agree,
+        "glossy_hit_agreement_rays": n_agree,
+        "perfect_trace_fallbacks": int(np.sum(perfect.fallback)),
+        "perfect_trace_fallback_share": float(np.sum(perfect.fallback) / n_exact) if n_exact else 0.0,
+        "relmse_glossy_indirect": rel(probe_g, crn_ref_g),
+        "relmse_glossy_perfect_trace": rel(perfect_g, crn_ref_g),
+        "relmse_black_glossy_indirect": rel(np.zeros_like(crn_ref_g), crn_ref_g),
+        "ci95_mse_glossy_indirect": boot(terms["sq_px"]),
+        "ci95_mse_glossy_perfect_trace": boot(terms["sq_px_perfect"]),
+        "ci95_mse_glossy_trace_share": boot(terms["sq_px"] - terms["sq_px_perfect"]),
+    }
+
+
 def score(
     scene: Scene,
     lf: LightFieldProbes,
@@ -170,17 +222,12 @@ def score(
     probe_g = img(w_gl * shading.glossy)
     crn_ref_g = img(w_gl * crn.radiance)
     perfect_g = img(w_gl * perfect.radiance)
+    view_indep_g = img(w_gl * crn.diffuse_at_hit)
     floor_g = float(np.mean((w_gl**2 * crn.var_of_mean).reshape(H * W, S, 3).sum(axis=1) / S**2))
     probe_d = img(prim.rho_d * shading.irradiance / np.pi)
     probe_full = ref_img["emission"] + ref_img["direct"] + probe_d + probe_g
-
-    # ---- light leak: probe diffuse energy on pixels the reference leaves unlit
-    ref_lum = np.asarray(luminance(jnp.asarray(ref_img["diffuse_indirect"], jnp.float32)), np.float64)
-    pr_lum = np.asarray(luminance(jnp.asarray(probe_d, jnp.float32)), np.float64)
     hit_px = img(prim.valid[:, None].astype(np.float64))[..., 0] > 0
-    mean_lum = float(ref_lum[hit_px].mean()) if hit_px.any() else 0.0
-    dark = hit_px & (ref_lum <= config.leak_threshold * max(mean_lum, 0))
-    leak = float(np.sum(np.where(dark, pr_lum, 0.0)) / (H * W))
+    leak, dark = _light_leak(ref_img["diffuse_indirect"], probe_d, hit_px, config.leak_threshold)
 
     images = {
         "ref_emission": ref_img["emission"],
@@ -193,23 +240,14 @@ def score(
         "probe_glossy_indirect": probe_g.astype(np.float32),
         "probe_full": probe_full.astype(np.float32),
         "perfect_trace_glossy_indirect": perfect_g.astype(np.float32),
+        # the reference's glossy with the diffuse lobe only where the glossy ray lands: what probes store
+        "ref_glossy_indirect_diffuse_at_hit": view_indep_g.astype(np.float32),
     }
     for c in EVAL_COMPONENTS:
         images[f"error_{c}"] = np.abs(images[f"probe_{c}"] - images[f"ref_{c}"]).astype(np.float32)
 
-    st = shading.status
-    gl = st >= 0
-    n_gl = int(gl.sum())
-    lo, hi = (np.asarray(b, np.float64) for b in scene.bounds)
-    terms = glossy_terms(w_gl, shading.glossy, crn.radiance, perfect.radiance, st, S)
-    agree, n_agree = hit_agreement(
-        shading.t, perfect.t_exact, st, rtol=config.agreement_rtol, atol=1e-4 * float(np.linalg.norm(hi - lo))
-    )
-    n_exact = int(np.sum(gl & np.isfinite(perfect.t_exact)))
     boot = lambda v: bootstrap_ci(v, n_resamples=config.bootstrap_resamples, seed=0)
     rel = lambda a, b: relative_mse(a, b, eps=config.relmse_eps)
-    sq_d = _sq_px(probe_d, ref_img["diffuse_indirect"])
-    sq_f = _sq_px(probe_full, ref_img["full"])
     metrics = {
         "scene": scene.name,
         "view": view,
@@ -226,6 +264,7 @@ def score(
         "seed": seed,
         "n_probes": int(np.sum(np.asarray(lf.active))),
         "n_probes_usable": int(np.sum(np.asarray(lf.active) & ~np.asarray(lf.inside))),
+        "probe_first_hit_lobes": None if lf.bake is None else lf.bake.first_hit_lobes,
         "mse_glossy_indirect": _mse(probe_g, crn_ref_g),
         "noise_floor_glossy_indirect": floor_g,
         "mse_glossy_indirect_no_crn": _mse(probe_g, ref_img["glossy_indirect"]),
@@ -242,33 +281,14 @@ def score(
         "noise_floor_full": float(np.mean(ref_var["diffuse_indirect"] + ref_var["glossy_indirect"])),
         "light_leak_energy": leak,
         "light_leak_pixels": int(dark.sum()),
-        "glossy_rays": n_gl,
-        # Keep first among the keys naming "unresolved": experiment._run.unresolved_share takes the first.
-        "unresolved_share": float(np.mean(st[gl] == RAY_UNRESOLVED)) if n_gl else 0.0,
-        # ---- the glossy error taken apart (_decompose.py, docs/evaluate.md)
-        "mse_glossy_perfect_trace": terms["mse_perfect_trace"],
-        "mse_glossy_trace_share": terms["trace_share"],
-        "trace_excess": terms["trace_excess"],
-        "mse_glossy_by_status": terms["by_status"],
-        "mse_glossy_resolved_only": terms["resolved_only"],
-        "glossy_status_share": {
-            name: (float(np.mean(st[gl] == k)) if n_gl else 0.0) for k, name in STATUS_NAMES.items()
-        },
-        "glossy_hit_agreement": agree,
-        "glossy_hit_agreement_rays": n_agree,
-        "perfect_trace_fallbacks": int(np.sum(perfect.fallback)),
-        "perfect_trace_fallback_share": float(np.sum(perfect.fallback) / n_exact) if n_exact else 0.0,
-        "relmse_glossy_indirect": rel(probe_g, crn_ref_g),
-        "relmse_glossy_perfect_trace": rel(perfect_g, crn_ref_g),
-        "relmse_black_glossy_indirect": rel(np.zeros_like(crn_ref_g), crn_ref_g),
+        **_glossy_breakdown(
+            scene, config, prim, crn, shading, perfect, (probe_g, crn_ref_g, perfect_g, view_indep_g)
+        ),
         "relmse_diffuse_indirect": rel(probe_d, ref_img["diffuse_indirect"]),
         "relmse_black_diffuse_indirect": rel(np.zeros_like(probe_d), ref_img["diffuse_indirect"]),
         "relmse_full": rel(probe_full, ref_img["full"]),
-        "ci95_mse_glossy_indirect": boot(terms["sq_px"]),
-        "ci95_mse_glossy_perfect_trace": boot(terms["sq_px_perfect"]),
-        "ci95_mse_glossy_trace_share": boot(terms["sq_px"] - terms["sq_px_perfect"]),
-        "ci95_mse_diffuse_indirect": boot(sq_d),
-        "ci95_mse_full": boot(sq_f),
+        "ci95_mse_diffuse_indirect": boot(_sq_px(probe_d, ref_img["diffuse_indirect"])),
+        "ci95_mse_full": boot(_sq_px(probe_full, ref_img["full"])),
         "bootstrap_resamples": config.bootstrap_resamples,
         "relmse_eps": config.relmse_eps,
         "shading_s_per_frame": shading.seconds_per_frame,

@@ -83,10 +83,13 @@ class PrimarySamples:
 @dataclasses.dataclass(frozen=True)
 class CrnReference:
     """Per sample: the path-traced reflected radiance along its glossy ray and its variance of the mean
-    (zeros for samples without one)."""
+    (zeros for samples without one); ``diffuse_at_hit``: the same with the surface the glossy ray hits
+    reflecting by its diffuse lobe only — what a probe texel stores (``probes.path_traced_radiance``),
+    so ``radiance − diffuse_at_hit`` is the view-dependent part no probe can hand on."""
 
     radiance: np.ndarray
     var_of_mean: np.ndarray
+    diffuse_at_hit: np.ndarray
 
 
 @dataclasses.dataclass(frozen=True)
@@ -226,9 +229,9 @@ def crn_reference(
     scene: Scene, prim: PrimarySamples, config: EvalConfig, *, seed: int, caster
 ) -> CrnReference:
     """Reflected radiance along each glossy ray, path traced (``glossy_ref_spp`` paths, ``max_depth − 1``
-    segments; reflected = full − emission at the next hit)."""
-    L = np.zeros((prim.n_samples, 3))
-    V = np.zeros((prim.n_samples, 3))
+    segments; reflected = full − emission at the next hit), with every lobe and with the diffuse lobe
+    only at the surface the ray hits (:class:`CrnReference`)."""
+    L, V, Ld = (np.zeros((prim.n_samples, 3)) for _ in range(3))
     if len(prim.glossy_idx):
         rr = trace_rays(
             scene,
@@ -240,10 +243,12 @@ def crn_reference(
             caster=caster,
             progress=config.progress,
         )
-        full, em = (np.asarray(rr.component(c), np.float64) for c in ("full", "emission"))
-        L[prim.glossy_idx] = full - em
+        c = {k: np.asarray(rr.component(k), np.float64) for k in rr.components}
+        L[prim.glossy_idx] = c["full"] - c["emission"]
         V[prim.glossy_idx] = np.asarray(rr.var_of_mean[:, rr.components.index("full")], np.float64)
-    return CrnReference(L, V)
+        # the same paths, the specular lobe at the hit left out (render._integrator "glossy_direct")
+        Ld[prim.glossy_idx] = c["direct"] - c["glossy_direct"] + c["diffuse_indirect"]
+    return CrnReference(L, V, Ld)
 
 
 def shade_probes(

@@ -383,11 +383,9 @@ def _converged(meta: dict) -> bool | None:
 
 
 def unresolved_share(ev: dict) -> float | None:
-    """The share of light-field rays the tracer could not resolve, from the evaluation metrics."""
-    for k, v in ev.items():
-        if "unresolved" in k and isinstance(v, int | float):
-            return float(v)
-    return None
+    """The share of light-field rays the tracer could not resolve (``evaluate``'s ``unresolved_share``)."""
+    v = ev.get("unresolved_share")
+    return float(v) if isinstance(v, int | float) and not isinstance(v, bool) else None
 
 
 def failures(m: dict) -> list[str]:

@@ -19,6 +19,15 @@ evaluation's CRN glossy reference traces its secondary rays with the same depth.
 sample counts, the scene and the key are recorded on the probes (:class:`~probeplace._core.BakeSettings`)
 and checked by :func:`check_bake_settings` when probes are evaluated.
 
+**What a texel stores is view-independent** (``path_traced_radiance(first_hit_lobes="diffuse")``, the
+default): the surface a texel sees reflects toward the probe by its *diffuse lobe only*; bounces beyond
+it keep the whole BRDF. A texel is read by viewers in other directions than the probe's, so a glossy
+highlight toward the probe would be handed to viewers that never see it: on Crytek Sponza (sunlit floor,
+roughness 0.22) baking every lobe made a perfect trace's glossy error 3.2× larger and its mean 20 % too
+bright (16×8×8 grid, 32² maps). The specular lobe of that surface toward the viewer is then missing from
+the estimate; the evaluation reports that share (``mse_glossy_view_dependence``). The irradiance maps
+(diffuse shading) are integrated from every lobe's radiance, from the same paths.
+
 **Surfels are oriented toward the probe**: the stored normal faces the probe whatever the winding,
 and the ``backface`` map keeps which side (by the geometric normal) the probe saw.
 
@@ -66,9 +75,11 @@ from ._inside import probes_inside
 
 log = logging.getLogger(__name__)
 
-#: ``radiance_fn(origins, directions, key) -> (reflected, emitted)``, both (n, 3): radiance arriving at
-#: each origin along -direction, split as in the module docstring.
-RadianceFn = Callable[[Float[Array, "n 3"], Float[Array, "n 3"], jax.Array], tuple[Array, Array]]
+#: ``radiance_fn(origins, directions, key) -> (reflected, emitted)`` or ``(reflected, emitted,
+#: reflected_every_lobe)``, each (n, 3): radiance arriving at each origin along -direction, split as in
+#: the module docstring. ``reflected`` fills the radiance maps (glossy reads); the irradiance maps are
+#: integrated from ``reflected_every_lobe`` when given (the view-independent split), else ``reflected``.
+RadianceFn = Callable[[Float[Array, "n 3"], Float[Array, "n 3"], jax.Array], tuple[Array, ...]]
 
 
 #: Camera path depth of the evaluation when none is given (``evaluate.EvalConfig.max_depth``'s default);
@@ -105,6 +116,8 @@ class PathTracedRadiance:
     max_depth: int
     specular: float
     caster: object = None
+    first_hit_lobes: str = "diffuse"
+    backend: str = "jax"
 
     def __call__(self, origins, directions, key):
         from ..render import trace_rays
@@ -118,9 +131,15 @@ class PathTracedRadiance:
             max_depth=self.max_depth,
             specular=self.specular,
             caster=self.caster,
+            backend=self.backend,
         )
         emitted = r.component("emission")
-        return r.component("full") - emitted, emitted
+        every_lobe = r.component("full") - emitted
+        if self.first_hit_lobes == "all":
+            return every_lobe, emitted
+        # the diffuse lobe's share of what the surface reflects (render._integrator: "glossy_direct")
+        diffuse_lobe = r.component("direct") - r.component("glossy_direct") + r.component("diffuse_indirect")
+        return diffuse_lobe, emitted, every_lobe
 
 
 def path_traced_radiance(
@@ -129,7 +148,9 @@ def path_traced_radiance(
     spp: int = 16,
     max_depth: int = bake_depth_for(DEFAULT_EVAL_MAX_DEPTH),
     specular: float = 1.0,
+    first_hit_lobes: str = "diffuse",
     caster=None,
+    backend: str = "jax",
 ) -> PathTracedRadiance:
     """The reference path tracer as a :data:`RadianceFn`: ``render.trace_rays`` split into reflected
     (direct + diffuse indirect + glossy indirect) and emitted (emission, sky) radiance.
@@ -144,11 +165,19 @@ def path_traced_radiance(
             ``bake_depth_for(D)`` for an evaluation with camera depth D (the default is that of
             :data:`DEFAULT_EVAL_MAX_DEPTH`); a mismatch is refused when the probes are evaluated.
         specular: dielectric specular factor (``render.RenderConfig.specular``; the evaluation uses 1).
-        caster: ray caster (default ``render.default_caster``).
+        first_hit_lobes: ``"diffuse"`` (default): the surface a texel sees reflects toward the probe by
+            its diffuse lobe only — view-independent radiance, which any viewer may read (DDGI's choice);
+            deeper bounces keep the whole BRDF. ``"all"``: the whole BRDF, so a glossy surface's highlight
+            toward the *probe* is stored and handed to viewers who would not see it (on Sponza's sunlit
+            floor, roughness 0.22, this made a perfect trace's glossy MSE 3.2× larger, issue 16).
+        caster: ray caster (default ``render.default_caster``; ``backend="jax"`` only).
+        backend: ``"jax"`` (default) or ``"mitsuba"`` (``render.RenderConfig.backend``: the same
+            estimator and random numbers compiled by Mitsuba 3 on the CPU, several times faster there).
 
     Raises:
         SceneError: the scene has no light (every baked map would be black).
-        ConfigError: ``spp`` or ``max_depth`` not a positive int, ``specular`` outside [0, 1].
+        ConfigError: ``spp`` or ``max_depth`` not a positive int, ``specular`` outside [0, 1], unknown
+            ``first_hit_lobes``, unknown ``backend`` or a ``caster`` with ``backend="mitsuba"``.
     """
     if not scene.has_light:
         raise SceneError(
@@ -160,10 +189,26 @@ def path_traced_radiance(
             raise ConfigError(f"path_traced_radiance: {name} must be a positive int, got {v!r}")
     if not 0.0 <= float(specular) <= 1.0:
         raise ConfigError(f"path_traced_radiance: specular must be in [0, 1], got {specular!r}")
-    return PathTracedRadiance(scene, int(spp), int(max_depth), float(specular), caster)
+    if first_hit_lobes not in FIRST_HIT_LOBES:
+        raise ConfigError(
+            f"path_traced_radiance: first_hit_lobes must be one of {FIRST_HIT_LOBES}, got {first_hit_lobes!r}"
+        )
+    from ..render import BACKENDS
+
+    if backend not in BACKENDS:
+        raise ConfigError(f"path_traced_radiance: backend must be one of {BACKENDS}, got {backend!r}")
+    if backend == "mitsuba" and caster is not None:
+        raise ConfigError(
+            "path_traced_radiance: a caster is a backend='jax' option (Mitsuba casts with Embree)"
+        )
+    return PathTracedRadiance(
+        scene, int(spp), int(max_depth), float(specular), caster, first_hit_lobes, backend
+    )
 
 
 INSIDE_TESTS = ("reach", "backface", "none")
+#: What a texel's surface reflects toward the probe into ``radiance`` (:func:`path_traced_radiance`).
+FIRST_HIT_LOBES = ("diffuse", "all")
 
 
 def _is_pow2(n: int) -> bool:
@@ -175,8 +220,13 @@ class BakeConfig:
     """Bake settings.
 
     Attributes:
-        radiance_res: interior resolution of the radiance / emission / normal / distance maps (a power
-            of two, for the MIP chains); ``None`` derives it with :func:`default_radiance_res`.
+        radiance_res: interior resolution of the radiance / emission maps (a power of two, for the MIP
+            chains); ``None`` derives it with :func:`default_radiance_res`.
+        geometry_res: interior resolution of the geometry maps — distance, normal, back-face, and the
+            distance MIPs the tracer marches (a power of two); ``None``: ``radiance_res``. Finer geometry
+            costs one exact ray per texel, no path tracing: it lets the tracer resolve depth
+            discontinuities the radiance texels would blur (issue 16: Sponza 16×8×8, 64² radiance,
+            unresolved 0.116 → 0.075 with 128² geometry).
         irradiance_res: interior resolution of the irradiance map (McGuire §3: low frequency, 8 is
             DDGI's choice).
         moments_res: interior resolution of the distance-moment map (DDGI uses 16).
@@ -198,6 +248,7 @@ class BakeConfig:
     """
 
     radiance_res: int | None = None
+    geometry_res: int | None = None
     irradiance_res: int = 8
     moments_res: int = 16
     n_sub: int = 2
@@ -210,10 +261,12 @@ class BakeConfig:
     progress: bool = True
 
     def __post_init__(self):
-        if self.radiance_res is not None and not (_is_pow2(self.radiance_res) and self.radiance_res >= 2):
-            raise ConfigError(
-                f"BakeConfig.radiance_res must be a power of two ≥ 2, got {self.radiance_res!r}"
-            )
+        for name in ("radiance_res", "geometry_res"):
+            v = getattr(self, name)
+            if v is not None and not (
+                isinstance(v, int) and not isinstance(v, bool) and _is_pow2(v) and v >= 2
+            ):
+                raise ConfigError(f"BakeConfig.{name} must be a power of two ≥ 2, got {v!r}")
         for name in ("irradiance_res", "moments_res", "n_sub", "probes_per_batch", "inside_neighbours"):
             v = getattr(self, name)
             if not isinstance(v, int) or isinstance(v, bool) or v < 1:
@@ -267,18 +320,19 @@ def _bake_batch(
     caster,
     radiance_fn: RadianceFn,
     res: int,
+    geo_res: int,
     n_sub: int,
     far: float,
     key: jax.Array,
 ):
     b = pos.shape[0]
-    centre_dirs = jnp.broadcast_to(texel_directions(res), (b, res, res, 3)).reshape(-1, 3)
-    origins = jnp.repeat(pos, res * res, axis=0)
+    centre_dirs = jnp.broadcast_to(texel_directions(geo_res), (b, geo_res, geo_res, 3)).reshape(-1, 3)
+    origins = jnp.repeat(pos, geo_res * geo_res, axis=0)
     hit = caster.closest_hit(origins, centre_dirs)
     is_hit = np.asarray(hit.tri) >= 0
     t = np.asarray(hit.t)
     d = np.asarray(centre_dirs)
-    distance = np.where(is_hit, t, far).reshape(b, res, res)
+    distance = np.where(is_hit, t, far).reshape(b, geo_res, geo_res)
     ng = np.asarray(hit.geo_normal)
     ns = np.asarray(hit.shading_normal)
     # The side the probe sees (the renderer's rule: the geometric normal decides), then the shading
@@ -287,18 +341,19 @@ def _bake_batch(
     side = np.where(back, -1.0, 1.0)[:, None]
     n_or = ns * side
     n_or = np.where((np.sum(n_or * d, axis=-1) < 0)[:, None], n_or, ng * side)
-    normal = np.where(is_hit[:, None], n_or, 0.0).reshape(b, res, res, 3)
-    backface = back.reshape(b, res, res)
+    normal = np.where(is_hit[:, None], n_or, 0.0).reshape(b, geo_res, geo_res, 3)
+    backface = back.reshape(b, geo_res, geo_res)
 
     k_dir, k_rad = jax.random.split(key)
     sub = n_sub * n_sub
     dirs = jax.vmap(lambda k: jittered_texel_directions(res, n_sub, key=k))(jax.random.split(k_dir, b))
     dirs = dirs.reshape(-1, 3)
     sub_origins = jnp.repeat(pos, res * res * sub, axis=0)
-    reflected, emitted = radiance_fn(sub_origins, dirs, k_rad)
-    radiance = np.asarray(reflected).reshape(b, res, res, sub, 3).mean(axis=3)
-    emission = np.asarray(emitted).reshape(b, res, res, sub, 3).mean(axis=3)
-    return radiance, emission, normal, distance, backface
+    out = radiance_fn(sub_origins, dirs, k_rad)
+    per_texel = lambda x: np.asarray(x).reshape(b, res, res, sub, 3).mean(axis=3)
+    radiance, emission = per_texel(out[0]), per_texel(out[1])
+    every_lobe = per_texel(out[2]) if len(out) > 2 else radiance  # :data:`RadianceFn`
+    return radiance, emission, every_lobe, normal, distance, backface
 
 
 def bake_probes(
@@ -339,6 +394,7 @@ def bake_probes(
     if pos.shape[0] == 0:
         raise ConfigError("cannot bake an empty probe set")
     res = config.radiance_res or default_radiance_res(scene, quality=config.quality)
+    geo_res = config.geometry_res or res
     lo, hi = (np.asarray(b) for b in scene.bounds)
     far = float(2.0 * np.linalg.norm(hi - lo))
 
@@ -346,11 +402,17 @@ def bake_probes(
     bsz = config.probes_per_batch
     # Refuse up front (issue 9): one batch's rays (~200 bytes per path, see BakeConfig) plus the output
     # maps (radiance, emission, normal 3 floats, distance 1, kept as NumPy and as JAX copies).
-    need = min(bsz, n) * res * res * config.n_sub**2 * 200 + n * (res + 2) ** 2 * 10 * 4 * 2
+    # Geometry maps: distance 1 + normal 3 floats + back-face 1 byte, and the distance MIPs (≤ 2 × 4/3).
+    need = (
+        min(bsz, n) * res * res * config.n_sub**2 * 200
+        + n * (res + 2) ** 2 * 6 * 4 * 2
+        + n * (geo_res + 2) ** 2 * (4 * 4 + 1 + 4 * 3) * 2
+    )
     check_memory(
         need,
-        f"bake of {n} probes at radiance_res={res}, n_sub={config.n_sub}, probes_per_batch={bsz}",
-        "lower radiance_res, n_sub or probes_per_batch",
+        f"bake of {n} probes at radiance_res={res}, geometry_res={geo_res}, n_sub={config.n_sub}, "
+        f"probes_per_batch={bsz}",
+        "lower radiance_res, geometry_res, n_sub or probes_per_batch",
     )
     _warn_probe_layout(pos[np.asarray(probes.active)], lo, hi, "bake")  # inactive rows are padding
     parts: list[tuple] = []
@@ -359,20 +421,33 @@ def bake_probes(
     for i, start in enumerate(range(0, n, bsz)):
         parts.append(
             _bake_batch(
-                jnp.asarray(pos[start : start + bsz]), caster, radiance_fn, res, config.n_sub, far, keys[i]
+                jnp.asarray(pos[start : start + bsz]),
+                caster,
+                radiance_fn,
+                res,
+                geo_res,
+                config.n_sub,
+                far,
+                keys[i],
             )
         )
         bar.update(min(bsz, n - start))
     bar.close()
-    radiance, emission, normal, distance, backface = (np.concatenate(x) for x in zip(*parts, strict=True))
-    inside = _inside(scene, pos, res, np.where(distance < far, distance, np.inf), backface, caster, config)
+    radiance, emission, every_lobe, normal, distance, backface = (
+        np.concatenate(x) for x in zip(*parts, strict=True)
+    )
+    inside = _inside(
+        scene, pos, geo_res, np.where(distance < far, distance, np.inf), backface, caster, config
+    )
     if inside.any():
         log.warning(
             "%d of %d probes are inside geometry (inside_test=%s)", inside.sum(), n, config.inside_test
         )
 
     f32 = lambda x: jnp.asarray(x, jnp.float32)
-    irr = irradiance_map(f32(radiance), config.irradiance_res)
+    # Irradiance integrates what arrives at the probe from every lobe: a receiver near the probe gets the
+    # surfaces' specular reflection too (a furnace's walls: −3 % of its diffuse indirect without it).
+    irr = irradiance_map(f32(every_lobe), config.irradiance_res)
     mom = distance_moments(f32(distance), config.moments_res, config.moment_power)
     mins, maxs = mip_chains(f32(distance))
     return LightFieldProbes(
@@ -427,6 +502,8 @@ def _settings(scene: Scene, radiance_fn, res: int, n_sub: int, key) -> BakeSetti
             specular=jnp.asarray(radiance_fn.specular, jnp.float32),
             scene=scene.name,
             radiance="path_traced",
+            first_hit_lobes=radiance_fn.first_hit_lobes,
+            backend=radiance_fn.backend,
             **common,
         )
     return BakeSettings(

@@ -30,6 +30,7 @@ from ._lights import light_table as light_table
 from ._lights import sample_light as sample_light
 from ._mitsuba import best_mitsuba_variant as best_mitsuba_variant
 from ._mitsuba import mitsuba_scene_dict as mitsuba_scene_dict
+from ._render import BACKENDS as BACKENDS
 from ._render import RayRadiance as RayRadiance
 from ._render import RenderConfig as RenderConfig
 from ._render import RenderResult as RenderResult

@@ -14,7 +14,11 @@ first surface the camera ray hits, x_k the k-th:
 * ``diffuse_indirect`` / ``glossy_indirect``: light reflected at x₁ that was itself *reflected* (not
   emitted) by another surface x₂ (paths with ≥ 2 scattering vertices), split by the lobe sampled at x₁
   (the one-sample lobe estimator f_k cos / (p_k pdf_k), so each part is unbiased for its own lobe);
-* ``full`` = the sum of the four.
+* ``full`` = the sum of the four;
+* ``glossy_direct``: the part of ``direct`` reflected by x₁'s *specular* lobe (NEE with f_s, and the
+  BRDF-sampled emitter hits of paths that sampled the specular lobe at x₁) — a breakdown, not a fifth
+  term of ``full``. ``direct − glossy_direct + diffuse_indirect`` is the radiance x₁ reflects by its
+  diffuse lobe: view-independent, what a light probe stores for every viewer (``probes._bake``).
 """
 
 from __future__ import annotations
@@ -39,7 +43,7 @@ from ._sampling import (
     to_world,
 )
 
-COMPONENTS = ("emission", "direct", "diffuse_indirect", "glossy_indirect", "full")
+COMPONENTS = ("emission", "direct", "diffuse_indirect", "glossy_indirect", "full", "glossy_direct")
 # Spawned rays start this far off the surface, relative to the point's magnitude: Mitsuba 3's
 # math::RayEpsilon = 1500 · 2⁻²⁴ (include/mitsuba/core/math.h), so both renderers see the same geometry
 # to within float32 round-off. Shadow rays stop short of the light by the relative ShadowEpsilon = 10×.
@@ -69,7 +73,9 @@ class Paths(eqx.Module):
             no MIS against light sampling there).
         spec_first: the lobe chosen at x₁ was the specular one.
         emission, direct, indirect: accumulated contributions per component (indirect not yet split).
-        pending: NEE contribution waiting for its shadow ray.
+        glossy_direct: the part of ``direct`` reflected by x₁'s specular lobe.
+        pending: NEE contribution waiting for its shadow ray; pending_glossy: its specular-lobe part at
+            x₁ (zero at later vertices).
         pixel, sample: the lane's pixel and sample index (random-number stream ids).
     """
 
@@ -82,7 +88,9 @@ class Paths(eqx.Module):
     emission: Float[Array, "n 3"]
     direct: Float[Array, "n 3"]
     indirect: Float[Array, "n 3"]
+    glossy_direct: Float[Array, "n 3"]
     pending: Float[Array, "n 3"]
+    pending_glossy: Float[Array, "n 3"]
     pixel: Int[Array, " n"]
     sample: Int[Array, " n"]
 
@@ -115,7 +123,9 @@ def init_paths(
         emission=z3,
         direct=z3,
         indirect=z3,
+        glossy_direct=z3,
         pending=z3,
+        pending_glossy=z3,
         pixel=pixel,
         sample=sample,
     )
@@ -165,11 +175,11 @@ def _shade_one(ctx: ShadeContext, seed, k, lane, hit):
     pdf_b = (1.0 - ps) * pdf_d + ps * pdf_s
     ok_l = cont & (ls.pdf > 0) & (dot3(ls.wi, ng_f) > 0) & (dot3(wo, ng_f) > 0)
     w_l = power_heuristic(ls.pdf, pdf_b)
-    nee = jnp.where(
-        ok_l,
-        thr * (f_d + f_s) * jnp.maximum(wi_l[2], 0.0) * ls.radiance * (w_l / jnp.where(ok_l, ls.pdf, 1.0)),
-        0.0,
+    light = jnp.where(
+        ok_l, thr * jnp.maximum(wi_l[2], 0.0) * ls.radiance * (w_l / jnp.where(ok_l, ls.pdf, 1.0)), 0.0
     )
+    nee = light * (f_d + f_s)
+    nee_glossy = jnp.where(k == 1, light * f_s, 0.0)  # x₁'s specular-lobe share (``glossy_direct``)
     shadow = (x_off, ls.wi, jnp.where(ok_l, ls.dist * (1.0 - SHADOW_EPS), 0.0))
     # ---- BRDF sample → the next ray
     bs = sample_brdf(p, wo_l, u[DIM_LOBE : DIM_LOBE + 3])
@@ -186,21 +196,28 @@ def _shade_one(ctx: ShadeContext, seed, k, lane, hit):
     thr_new = jnp.where(use_rr & survive & (q > 0), thr_new / jnp.where(q > 0, q, 1.0), thr_new)
     alive_new = ok_b & survive & jnp.any(thr_new > 0)
     new_lane = (x_off, wi, thr_new, alive_new, bs.pdf, spec_first)
-    return got, nee, new_lane, shadow
+    return got, (nee, nee_glossy), new_lane, shadow
 
 
-def _route(paths: Paths, value: Float[Array, "n 3"], k_component: Int[Array, "*n"]) -> Paths:
+def _route(
+    paths: Paths,
+    value: Float[Array, "n 3"],
+    k_component: Int[Array, "*n"],
+    glossy_direct: Float[Array, "n 3"],
+) -> Paths:
     """Add ``value`` to the component of vertex depth ``k_component`` (1: emission, 2: direct, ≥3:
     indirect) — the depth at which that radiance *leaves its emitter* along the path. ``k_component``
-    is one depth for all paths or one per path."""
+    is one depth for all paths or one per path. ``glossy_direct``: the part of a direct ``value`` that
+    x₁'s specular lobe reflected (added to ``glossy_direct`` where the value is direct)."""
     k_component = jnp.reshape(k_component, (-1, 1)) if jnp.ndim(k_component) else k_component
     return eqx.tree_at(
-        lambda q: (q.emission, q.direct, q.indirect),
+        lambda q: (q.emission, q.direct, q.indirect, q.glossy_direct),
         paths,
         (
             paths.emission + jnp.where(k_component == 1, value, 0.0),
             paths.direct + jnp.where(k_component == 2, value, 0.0),
             paths.indirect + jnp.where(k_component >= 3, value, 0.0),
+            paths.glossy_direct + jnp.where(k_component == 2, glossy_direct, 0.0),
         ),
     )
 
@@ -222,13 +239,25 @@ def shade(
     )
     hits = (hit.t, hit.tri, hit.geo_normal, hit.shading_normal, hit.material)
     k_lane = jnp.broadcast_to(k, paths.alive.shape)  # one bounce index for all paths, or one per path
-    got, nee, new, shadow = jax.vmap(_shade_one, in_axes=(None, None, 0, 0, 0))(ctx, seed, k_lane, lane, hits)
-    # Emission found at x_k left its emitter at depth k; NEE at x_k lights x_k, i.e. depth k + 1.
-    paths = _route(paths, got, k)
+    got, (nee, nee_glossy), new, shadow = jax.vmap(_shade_one, in_axes=(None, None, 0, 0, 0))(
+        ctx, seed, k_lane, lane, hits
+    )
+    # Emission found at x_k left its emitter at depth k; NEE at x_k lights x_k, i.e. depth k + 1. An
+    # emitter found at x₂ was reached by x₁'s BRDF sample: its lobe (``spec_first``, still x₁'s here).
+    paths = _route(paths, got, k, jnp.where(paths.spec_first[:, None], got, 0.0))
     paths = eqx.tree_at(
-        lambda q: (q.origin, q.direction, q.throughput, q.alive, q.prev_pdf, q.spec_first, q.pending),
+        lambda q: (
+            q.origin,
+            q.direction,
+            q.throughput,
+            q.alive,
+            q.prev_pdf,
+            q.spec_first,
+            q.pending,
+            q.pending_glossy,
+        ),
         paths,
-        (*new, nee),
+        (*new, nee, nee_glossy),
     )
     return paths, ShadowRays(*shadow)
 
@@ -236,13 +265,13 @@ def shade(
 def add_shadowed(paths: Paths, occluded: Bool[Array, " n"], k: Int[Array, "*n"]) -> Paths:
     """Add the pending NEE contributions of bounce k whose shadow rays were not blocked."""
     value = jnp.where(occluded[:, None], 0.0, paths.pending)
-    return _route(paths, value, k + 1)
+    return _route(paths, value, k + 1, jnp.where(occluded[:, None], 0.0, paths.pending_glossy))
 
 
-def components(paths: Paths) -> Float[Array, "n 5 3"]:
+def components(paths: Paths) -> Float[Array, "n 6 3"]:
     """Per-path contributions in :data:`COMPONENTS` order (the full value is their sum)."""
     spec = paths.spec_first[:, None]
     diff_ind = jnp.where(spec, 0.0, paths.indirect)
     gloss_ind = jnp.where(spec, paths.indirect, 0.0)
     full = paths.emission + paths.direct + paths.indirect
-    return jnp.stack([paths.emission, paths.direct, diff_ind, gloss_ind, full], axis=1)
+    return jnp.stack([paths.emission, paths.direct, diff_ind, gloss_ind, full, paths.glossy_direct], axis=1)

@@ -31,6 +31,8 @@ from ._lights import light_table
 from ._sampling import DIM_DIR_U, path_uniforms, seed_from_key
 
 SCHEDULES = ("compact", "fused")
+#: Who runs the path tracer: JAX (default: any device, jittable casters) or Mitsuba 3's LLVM backend (CPU).
+BACKENDS = ("jax", "mitsuba")
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -51,6 +53,9 @@ class RenderConfig:
             the live paths of each bounce, padded to power-of-two sizes) or ``"fused"`` (one jitted
             ``while_loop`` over every lane; see docs/render.md "Performance"). Host casters always get
             the host loop.
+        backend: ``"jax"`` (default) or ``"mitsuba"``: the same model, estimator and random numbers
+            compiled by Mitsuba 3 / Dr.Jit with Embree ray casts (``_mitsuba_backend``; CPU only, several
+            times faster there; docs/render.md "Backends"). ``schedule`` and a ``caster`` are JAX-only.
     """
 
     width: int
@@ -62,6 +67,7 @@ class RenderConfig:
     paths_per_batch: int = 1 << 18
     progress: bool = True
     schedule: str = "compact"
+    backend: str = "jax"
 
     def __post_init__(self):
         for name in ("width", "height", "spp", "max_depth", "rr_depth", "paths_per_batch"):
@@ -72,6 +78,8 @@ class RenderConfig:
             raise ConfigError(f"RenderConfig.schedule must be one of {SCHEDULES}, got {self.schedule!r}")
         if not 0.0 <= float(self.specular) <= 1.0:
             raise ConfigError(f"RenderConfig.specular must be in [0, 1], got {self.specular!r}")
+        if self.backend not in BACKENDS:
+            raise ConfigError(f"RenderConfig.backend must be one of {BACKENDS}, got {self.backend!r}")
 
 
 class RenderResult(eqx.Module):
@@ -171,7 +179,8 @@ def _start(
 
 
 def _reduce(paths: Paths, valid: Bool[Array, "p g"]):
-    """Per-item batch mean and sum of squared deviations of every component (p, 5, 3), and counts (p,)."""
+    """Per-item batch mean and sum of squared deviations of every component (p, len(COMPONENTS), 3), and
+    counts (p,)."""
     p, g = valid.shape
     c = components(paths).reshape(p, g, len(COMPONENTS), 3)
     w = valid.astype(c.dtype)[:, :, None, None]
@@ -327,21 +336,36 @@ def _seed(key) -> UInt32[Array, ""]:
 
 
 def _accumulate(scene, source, n_items: int, config: RenderConfig, seed, caster, offset: int, unit: str):
-    """Trace ``config.spp`` samples of every item of ``source``; float64 (mean, var_of_mean), (n, 5, 3)."""
-    if caster is None:
-        caster = default_caster(scene)
-    if not isinstance(caster, AbstractRayCaster):
-        raise TypeError(f"caster must be an AbstractRayCaster, got {type(caster).__name__}")
-    ctx = shade_context(scene, config)
-    p, g = _batch_layout(config, n_items)
-    if not is_jittable(caster):
-        run = _batch_host
+    """Trace ``config.spp`` samples of every item of ``source``; float64 (mean, var_of_mean), each
+    (n, len(COMPONENTS), 3)."""
+    if config.backend == "mitsuba":
+        if caster is not None:
+            raise ConfigError("a caster is a backend='jax' option; backend='mitsuba' casts rays with Embree")
+        from ._mitsuba_backend import batch_runner
+
+        run = batch_runner(
+            scene,
+            max_depth=config.max_depth,
+            rr_depth=config.rr_depth,
+            specular=config.specular,
+        )
+        ctx = None
     else:
-        run = _batch_compact if config.schedule == "compact" else _batch_jit
+        if caster is None:
+            caster = default_caster(scene)
+        if not isinstance(caster, AbstractRayCaster):
+            raise TypeError(f"caster must be an AbstractRayCaster, got {type(caster).__name__}")
+        ctx = shade_context(scene, config)
+        if not is_jittable(caster):
+            run = _batch_host
+        else:
+            run = _batch_compact if config.schedule == "compact" else _batch_jit
+    p, g = _batch_layout(config, n_items)
     n = np.zeros(n_items)
     mean = np.zeros((n_items, len(COMPONENTS), 3))
     m2 = np.zeros_like(mean)
-    i32 = lambda x: jnp.asarray(x, jnp.int32)
+    # the Mitsuba batches take plain ints (a JAX scalar costs a dispatch per batch there)
+    i32 = int if config.backend == "mitsuba" else (lambda x: jnp.asarray(x, jnp.int32))
     bar = tqdm(total=config.spp * n_items, disable=not config.progress, unit=unit, unit_scale=True)
     for s0 in range(0, config.spp, g):
         for pix0 in range(0, n_items, p):
@@ -411,8 +435,10 @@ def render(
         A :class:`RenderResult` (float32; ``image("full")`` is the beauty image).
 
     Raises:
-        ConfigError: bad settings; KeyError: unknown view name; TypeError: bad key or caster;
-        SceneError: the scene has no light; ResourceError: the image statistics would not fit in memory.
+        ConfigError: bad settings (a ``caster`` with ``backend="mitsuba"`` too); KeyError: unknown view
+        name; TypeError: bad key or caster; SceneError: the scene has no light; ResourceError: the image
+        statistics would not fit in memory; ImportError: ``backend="mitsuba"`` without Mitsuba's LLVM
+        variant.
     """
     _check_renderable(scene, config.width * config.height, config, "render")
     camera = scene.view(view) if isinstance(view, str) else view
@@ -462,6 +488,7 @@ def trace_rays(
     progress: bool = False,
     caster: AbstractRayCaster | None = None,
     stream_offset: int = 0,
+    backend: str = "jax",
 ) -> RayRadiance:
     """Path-trace the radiance arriving at ``origins`` from ``directions`` (components + variance).
 
@@ -478,11 +505,16 @@ def trace_rays(
         spp: paths per ray.
         key: PRNG key or integer seed.
         max_depth, rr_depth, specular, paths_per_batch, progress: as in :class:`RenderConfig`.
-        caster: ray caster (default :func:`default_caster`).
+        caster: ray caster (default :func:`default_caster`; ``backend="jax"`` only).
         stream_offset: index of ray 0's random-number stream.
+        backend: ``"jax"`` or ``"mitsuba"`` (:class:`RenderConfig`); both draw the same random numbers.
 
     Returns:
         A :class:`RayRadiance` (float32).
+
+    Raises:
+        ValueError: bad ray shapes; ConfigError: bad settings (a ``caster`` with ``backend="mitsuba"``
+        too); ImportError: ``backend="mitsuba"`` without Mitsuba's LLVM variant.
     """
     o = jnp.asarray(origins, jnp.float32)
     d = jnp.asarray(directions, jnp.float32)
@@ -497,6 +529,7 @@ def trace_rays(
         specular=specular,
         paths_per_batch=paths_per_batch,
         progress=progress,
+        backend=backend,
     )
     _check_renderable(scene, int(o.shape[0]), cfg, "trace_rays")
 
