@@ -2,6 +2,7 @@
 
     .venv/bin/python benchmarks/convergence.py [--quick] [--scenes cornell sponza] [--bake-spp N]
         [--n-sub N] [--res 16 32 64] [--grids 4x4x4 8x4x4] [--seeds 3] [--fresh] [--geometry-res N]
+        [--backend jax|mitsuba]
 
 For each scene (Cornell box "front", Crytek Sponza "CameraMain"), uniform grids of increasing density
 (cell centres of the scene box) × radiance-map resolutions, baked with the path tracer
@@ -119,27 +120,32 @@ class Bench:
             glossy_ref_spp=args.glossy_ref_spp,
             max_depth=args.max_depth,
             timing_repeats=args.timing_repeats,
+            backend=args.backend,
         )
         self.shared: dict = {}
         self.warm: set = set()
 
     def settings(self) -> dict:
         c = self.config
-        return {
-            "scene": self.scene.name,
-            "view": self.view,
-            "width": c.width,
-            "height": c.height,
-            "spp": c.spp,
-            "glossy_spp": c.glossy_spp,
-            "glossy_ref_spp": c.glossy_ref_spp,
-            "max_depth": c.max_depth,
-            "glossy_filter": c.glossy_filter,
-            "bake_spp": self.args.bake_spp,
-            "n_sub": self.args.n_sub,
-            "bake_depth": c.max_depth - 1,
-            "first_hit_lobes": "diffuse",  # what texels store (probes.path_traced_radiance's default)
-        } | ({"geometry_res": self.args.geometry_res} if self.args.geometry_res else {})
+        return (
+            {
+                "scene": self.scene.name,
+                "view": self.view,
+                "width": c.width,
+                "height": c.height,
+                "spp": c.spp,
+                "glossy_spp": c.glossy_spp,
+                "glossy_ref_spp": c.glossy_ref_spp,
+                "max_depth": c.max_depth,
+                "glossy_filter": c.glossy_filter,
+                "bake_spp": self.args.bake_spp,
+                "n_sub": self.args.n_sub,
+                "bake_depth": c.max_depth - 1,
+                "first_hit_lobes": "diffuse",  # what texels store (probes.path_traced_radiance's default)
+            }
+            | ({"geometry_res": self.args.geometry_res} if self.args.geometry_res else {})
+            | ({"backend": self.args.backend} if self.args.backend != "jax" else {})
+        )
 
     def steps(self, seed: int):
         """Reference, primary samples and CRN reference of one seed (computed once, shared by cells)."""
@@ -167,7 +173,11 @@ class Bench:
             radiance_res=res, geometry_res=geo, n_sub=a.n_sub, probes_per_batch=per_batch, progress=False
         )
         fn = path_traced_radiance(
-            self.scene, spp=a.bake_spp, max_depth=self.config.max_depth - 1, caster=self.caster
+            self.scene,
+            spp=a.bake_spp,
+            max_depth=self.config.max_depth - 1,
+            caster=self.caster if a.backend == "jax" else None,
+            backend=a.backend,
         )
         warm_s = 0.0
         if (res, per_batch) not in self.warm:  # compile with one batch of the same shapes, timed apart
@@ -326,6 +336,12 @@ def main(argv=None) -> dict:
     ap.add_argument("--seeds", type=int, default=3, help="bake + evaluation seeds of the 128-probe grid")
     ap.add_argument("--grid128-res", type=int, default=None, help="its map resolution (default 64; quick 16)")
     ap.add_argument("--fresh", action="store_true", help="recompute cached cells")
+    ap.add_argument(
+        "--backend",
+        default="jax",
+        choices=["jax", "mitsuba"],
+        help="path tracer of the bakes and the references (render.RenderConfig.backend)",
+    )
     ap.add_argument(
         "--geometry-res",
         type=int,

@@ -368,7 +368,7 @@ def test_perfect_trace_reads_the_hit_colour(cornell_colour_small):
     hit = np.asarray(exact.tri) >= 0
     t = jnp.where(exact.tri >= 0, exact.t, jnp.inf)
     errs = {}
-    for f in ("texel", "bilinear"):
+    for f in ("texel", "bilinear", "depth_aware"):
         r = perfect_trace_radiance(lf, o, d, t, exact.geo_normal, filter=f)
         rad = np.asarray(r.radiance, np.float64)
         assert np.all(rad[~hit] == 0) and np.all(np.asarray(r.probe)[~hit] == -1)
@@ -381,6 +381,13 @@ def test_perfect_trace_reads_the_hit_colour(cornell_colour_small):
     assert np.mean(errs["texel"] < 0.1) > 0.9 and np.mean(errs["bilinear"] < 0.1) > 0.9
     # Position colour is linear on each surface: bilinear reconstruction beats the one-texel read.
     assert errs["bilinear"].mean() < errs["texel"].mean()
+    # Depth-aware: where the four texels straddle a silhouette, only those whose surfel lies at the hit
+    # are blended, so the large errors (a far wall's colour read on a block's edge) shrink; on one
+    # surface it is the bilinear read.
+    da, bil = errs["depth_aware"], errs["bilinear"]
+    assert np.mean(da < 0.1) >= np.mean(bil < 0.1)
+    assert np.quantile(da, 0.99) < np.quantile(bil, 0.99), (np.quantile(da, 0.99), np.quantile(bil, 0.99))
+    assert np.median(np.abs(da - bil)) < 1e-6  # most reads see one surface: identical
 
 
 def test_glossy_texel_filter_is_the_resolved_texel(cornell_colour_small):

@@ -36,6 +36,16 @@ def add_parser(sub) -> None:
     e.add_argument("--radiance-res", type=int, default=None, help="bake: radiance map resolution")
     e.add_argument("--bake-spp", type=int, default=16, help="bake: paths per texel ray")
     e.add_argument("--save-baked", default=None, help="bake: also save the baked probes to this .npz")
+    e.add_argument(
+        "--geometry-res", type=int, default=None, help="bake: geometry (distance, normal) map resolution"
+    )
+    e.add_argument(
+        "--backend",
+        default="jax",
+        choices=["jax", "mitsuba"],
+        help="path tracer of the bake and the references (mitsuba: Dr.Jit LLVM on the CPU, faster; "
+        "default jax)",
+    )
     e.set_defaults(func=run)
 
 
@@ -76,9 +86,17 @@ def run(args: argparse.Namespace) -> int:
         trace=TraceConfig(hierarchy=args.hierarchy),
         seed=args.seed,
         progress=True,
+        backend=args.backend,
     )
+    if args.backend == "mitsuba":  # refuse before loading anything if its LLVM variant cannot load
+        from ..render._mitsuba_backend import load_mitsuba
+
+        try:
+            load_mitsuba()
+        except ImportError as e:
+            raise ConfigError(f"--backend mitsuba: {e}") from None
     if path.suffix == ".json":
-        bake_cfg = BakeConfig(radiance_res=args.radiance_res, progress=True)
+        bake_cfg = BakeConfig(radiance_res=args.radiance_res, geometry_res=args.geometry_res, progress=True)
         if isinstance(args.bake_spp, bool) or args.bake_spp < 1:
             raise ConfigError(f"--bake-spp must be a positive integer, got {args.bake_spp}")
         probes, _ = load_probe_set(path)
@@ -100,7 +118,11 @@ def run(args: argparse.Namespace) -> int:
             probes,
             caster=caster,
             radiance_fn=path_traced_radiance(
-                scene, spp=args.bake_spp, max_depth=bake_depth_for(config.max_depth), caster=caster
+                scene,
+                spp=args.bake_spp,
+                max_depth=bake_depth_for(config.max_depth),
+                caster=caster if args.backend == "jax" else None,
+                backend=args.backend,
             ),
             key=jax.random.key(args.seed),
             config=bake_cfg,

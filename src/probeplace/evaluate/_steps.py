@@ -128,7 +128,9 @@ def render_reference(
         spp=config.spp,
         max_depth=config.max_depth,
         progress=config.progress,
+        backend=config.backend,
     )
+    caster = caster if config.backend == "jax" else None  # Mitsuba casts its own rays
     ref = render(scene, camera, cfg, key=jnp.asarray(seed, jnp.uint32), caster=caster)
     images = {c: np.asarray(ref.image(c), np.float32) for c in ref.components}
     variance = {c: np.asarray(ref.variance(c), np.float64) for c in ref.components}
@@ -240,7 +242,8 @@ def crn_reference(
             spp=config.glossy_ref_spp,
             key=jnp.asarray((seed + 0x9E3779B9) & 0xFFFFFFFF, jnp.uint32),
             max_depth=bake_depth_for(config.max_depth),  # the probes' depth: one rule for both
-            caster=caster,
+            caster=caster if config.backend == "jax" else None,
+            backend=config.backend,
             progress=config.progress,
         )
         c = {k: np.asarray(rr.component(k), np.float64) for k in rr.components}

@@ -20,6 +20,15 @@
     (the split-sum "pre-filtered radiance, level from roughness" of Karis 2013, Luo 2022 §4.1.3 / Eq. 4.4).
     Without a cone (``cone=None``) it is level 0, i.e. ``"bilinear"``.
 
+  - ``"depth_aware"``: bilinear over the texels whose *surfel* lies at the hit — each of the four texels'
+    surfel plane (the geometry map's distance and normal at the texel centre, McGuire §4.1) is met along
+    the read direction at r_i; a texel counts when |r_i − r| ≤ ``DEPTH_TOLERANCE`` · r, r the probe–hit
+    distance, and the weights of those that count are renormalised (all four fail: plain bilinear). A
+    plain bilinear read at a silhouette blends the near surface's texels with those of the surface
+    behind it (a shadowed pillar edge with the sun-lit floor beyond); the depth test keeps the blend on
+    the surface that was hit — the visibility weighting of McGuire §5 and DDGI's probe weights, applied
+    to the four texels of one probe.
+
   Misses read zero (reflected radiance) or the sky (``include_emission``). Unresolved rays fall back to the
   radiance the usable probe nearest to the last free point sees in the ray's direction (a distant-light
   approximation, the classic "nearest reflection probe"), read with the same filter, and are reported.
@@ -59,7 +68,10 @@ from .._core import (
 )
 from ._trace import RAY_HIT, RAY_MISS, LightFieldTracer, trace_light_field
 
-GLOSSY_FILTERS = ("texel", "bilinear", "mip")
+GLOSSY_FILTERS = ("texel", "bilinear", "mip", "depth_aware")
+#: ``"depth_aware"``: a texel counts when its surfel meets the read direction within this fraction of the
+#: probe–hit distance (module docstring).
+DEPTH_TOLERANCE = 0.1
 PERFECT_TRACE_CHOICES = ("nearest", "sharpest", "aligned")
 _CHUNK = 1 << 14
 
@@ -131,10 +143,48 @@ def _nearest(maps: Array, p: Int[Array, ""], direction: Float[Array, "3"]) -> Ar
     return maps[p, rc[0] + 1, rc[1] + 1]
 
 
-def _read(levels, filt: str, p, direction, lod):
-    """Filtered read of probe ``p``'s radiance in ``direction`` at MIP level ``lod`` (single ray)."""
+def _surfel_maps(lf: LightFieldProbes, res: int) -> tuple[Array, Array]:
+    """Bordered (p, res+2, res+2, 3) maps of each radiance texel's surfel: the point d·ω_c relative to the
+    probe and the normal, from the geometry texel containing the radiance texel's centre direction (the
+    geometry maps may be finer)."""
+    gres = lf.distance.shape[-1] - 2
+    dirs = texel_directions(res, lf.distance.dtype).reshape(-1, 3)
+    rc = jax.vmap(lambda w: texel_of_direction(gres, w))(dirs)
+    omega = texel_directions(gres, lf.distance.dtype)[rc[:, 0], rc[:, 1]]
+    dist = lf.distance[:, rc[:, 0] + 1, rc[:, 1] + 1]
+    point = (dist[..., None] * omega[None]).reshape(-1, res, res, 3)
+    normal = lf.normal[:, rc[:, 0] + 1, rc[:, 1] + 1].reshape(-1, res, res, 3)
+    return add_border(point), add_border(normal)
+
+
+def _bilinear_depth(maps, points, normals, p, direction, r) -> Array:
+    """Bilinear read of probe p in ``direction`` over the texels whose surfel lies at distance r
+    (module docstring, ``"depth_aware"``)."""
+    res = maps.shape[-2] - 2
+    s = jnp.clip((oct_encode(direction) + 1.0) * (res / 2.0) + 0.5, 0.5, res + 0.5)
+    i0 = jnp.minimum(jnp.floor(s).astype(jnp.int32), res)
+    f = s - i0.astype(s.dtype)
+    rows = i0[1] + jnp.array([0, 0, 1, 1], i0.dtype)
+    cols = i0[0] + jnp.array([0, 1, 0, 1], i0.dtype)
+    w = jnp.stack([(1 - f[0]) * (1 - f[1]), f[0] * (1 - f[1]), (1 - f[0]) * f[1], f[0] * f[1]])
+    x, n = points[p, rows, cols], normals[p, rows, cols]
+    wn = n @ direction
+    ok = jnp.abs(wn) > 1e-3
+    r_i = jnp.where(ok, jnp.sum(x * n, axis=-1) / jnp.where(ok, wn, 1.0), jnp.inf)
+    at_hit = ok & (jnp.abs(r_i - r) <= DEPTH_TOLERANCE * r)
+    wd = jnp.where(at_hit, w, 0.0)
+    total = jnp.sum(wd)
+    w = jnp.where(total > 0, wd / jnp.where(total > 0, total, 1.0), w)
+    return w @ maps[p, rows, cols]
+
+
+def _read(levels, filt: str, p, direction, lod, r=None):
+    """Filtered read of probe ``p``'s radiance in ``direction`` at MIP level ``lod`` (single ray); ``r``:
+    the probe–hit distance (``"depth_aware"``; inf: no hit to match, a plain bilinear read)."""
     if filt == "texel":
         return _nearest(levels[0], p, direction)
+    if filt == "depth_aware":
+        return _bilinear_depth(levels[0], levels[1], levels[2], p, direction, r)
     if filt == "bilinear" or len(levels) == 1:
         return _bilinear(levels[0], p, direction)
     lod = jnp.clip(lod, 0.0, len(levels) - 1.0)
@@ -181,7 +231,8 @@ def _glossy_chunk(tr: LightFieldTracer, levels, o, d, cone, sky, bias, filt: str
     lod = jnp.where(
         hit, _lod(cone, t_free, r, r0, bias), _lod(cone, jnp.ones_like(r), jnp.ones_like(r), r0, bias)
     )
-    val = jax.vmap(lambda pi, di, li: _read(levels, filt, pi, di, li))(p, direction, lod)
+    r_hit = jnp.where(hit, r, jnp.inf)  # an unresolved ray's fallback read has no hit to match
+    val = jax.vmap(lambda pi, di, li, ri: _read(levels, filt, pi, di, li, ri))(p, direction, lod, r_hit)
     miss = jnp.broadcast_to(sky[None, :], val.shape) if include_emission else jnp.zeros_like(val)
     out = jnp.where((res.status == RAY_MISS)[:, None], miss, val)
     probe = jnp.where(res.status == RAY_MISS, -1, p)
@@ -238,7 +289,7 @@ def _perfect_chunk(
     v = x - lf.pos_world[p]
     r = jnp.linalg.norm(v, axis=-1)
     lod = _lod(cone, jnp.where(hit, t, 0.0), r, levels[0].shape[-2] - 2, bias)
-    val = jax.vmap(lambda pi, di, li: _read(levels, filt, pi, di, li))(p, safe_normalize(v), lod)
+    val = jax.vmap(lambda pi, di, li, ri: _read(levels, filt, pi, di, li, ri))(p, safe_normalize(v), lod, r)
     miss = jnp.broadcast_to(sky[None, :], val.shape) if include_emission else jnp.zeros_like(val)
     out = jnp.where(hit[:, None], val, miss)
     return PerfectTraceResult(out, jnp.where(hit, p, -1), hit & ~any_ok, jnp.where(hit, lod, 0.0))
@@ -260,7 +311,11 @@ def _chunked(fn, arrays, chunk: int):
 
 
 def _levels(lf: LightFieldProbes, filt: str, include_emission: bool, mips) -> tuple[Array, ...]:
-    """The maps a read uses: the MIP chain for ``"mip"``, else level 0 alone (no chain built)."""
+    """The maps a read uses: the MIP chain for ``"mip"``, level 0 and its surfels for ``"depth_aware"``,
+    else level 0 alone (no chain built)."""
+    if filt == "depth_aware":
+        level0 = lf.radiance + lf.emission if include_emission else lf.radiance
+        return (level0, *_surfel_maps(lf, level0.shape[-2] - 2))
     if filt == "mip":
         return radiance_mips(lf, include_emission=include_emission) if mips is None else tuple(mips)
     if mips is not None:
