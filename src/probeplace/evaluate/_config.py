@@ -27,8 +27,9 @@ class EvalConfig:
             unfiltered), ``"bilinear"``, ``"depth_aware"`` (default: bilinear over the texels whose surfel
             lies at the hit; on Sponza 16×8×8 at 64² it lowered the glossy MSE 1.95 → 1.81× and the
             perfect trace 0.99 → 0.82× the black image, at 32² 4.4 → 2.2×) or ``"mip"``
-            (footprint-driven MIP level, probes/_glossy.py). Against the CRN reference, which scores each direction by itself, the
-            lobe-wide MIP read blurs every sample and measured 4× the bilinear MSE (docs/evaluate.md).
+            (footprint-driven MIP level, probes/_glossy.py). Against the CRN reference, which scores
+            each direction by itself, the lobe-wide MIP read blurs every sample and measured 4× the
+            bilinear MSE (docs/evaluate.md).
         glossy_lod_bias: added to the MIP level of ``"mip"`` reads.
         perfect_trace_margin: visibility margin of the perfect-trace probe choice (fraction of the
             probe–hit distance; ``probes.perfect_trace_radiance``).
