@@ -19,8 +19,8 @@ Tolerance: ``K_SIGMA`` standard errors of the mean difference, from
   of them (the view sees five walls; glossy rays reach all six) and each probe's texels are baked
   independently. Reads spread over many texels of each probe only lower it.
 
-The light-field *trace* (glossy rays) currently loses energy in closed scenes: it reports ~11 % of the
-furnace's glossy rays as misses, though no ray can leave the box (−9 % glossy energy measured). That is
+The light-field *trace* (glossy rays) currently loses energy in closed scenes: it reports some of the
+furnace's glossy rays as misses, though no ray can leave the box (−6.9 % glossy energy measured). That is
 checked against the *perfect trace* (exact hit, radiance read from the same probes there: the same
 baked texels, so the bake noise cancels) and is a strict xfail until the tracer is fixed.
 
@@ -163,8 +163,8 @@ def test_furnace_glossy_energy_of_the_perfect_trace(furnace):
 
 @pytest.mark.xfail(
     strict=True,
-    reason="the light-field tracer reports ~11 % of glossy rays as misses in the closed furnace box "
-    "(no ray can leave it), losing ~9 % of the glossy energy; probes._trace",
+    reason="the light-field tracer reports some glossy rays of the closed furnace box as misses (no ray "
+    "can leave it: they slip past a corner texel's surfel), losing ~7 % of the glossy energy; probes._trace",
 )
 def test_furnace_glossy_energy_of_the_light_field_trace(furnace):
     _, result = furnace
