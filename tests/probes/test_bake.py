@@ -390,6 +390,24 @@ def test_cli_refuses_a_baked_file_of_another_depth(tmp_path, capsys, getkey):
     assert "already baked" in capsys.readouterr().err
 
 
+def test_cli_checks_backend_and_geometry_res_before_loading(tmp_path, capsys, monkeypatch):
+    from probeplace.cli import main
+    from probeplace.render import _mitsuba_backend
+
+    def no_llvm():
+        raise ImportError("backend='mitsuba': no LLVM here")
+
+    monkeypatch.setattr(_mitsuba_backend, "load_mitsuba", no_llvm)
+    probes = tmp_path / "p.json"  # never read: the checks come first
+    argv = ["evaluate", "--scene", "no_such_scene", "--probes", str(probes), "--out", str(tmp_path / "ev")]
+    assert main([*argv, "--backend", "mitsuba"]) == 2
+    err = capsys.readouterr().err
+    assert "--backend mitsuba" in err and "no LLVM here" in err and err.count("\n") == 1
+    assert main([*argv, "--geometry-res", "24"]) == 2
+    assert "geometry_res must be a power of two" in capsys.readouterr().err
+    assert not (tmp_path / "ev").exists()
+
+
 def _quad_scene(z: float = 1.0):
     """One unit quad in the plane z = ``z`` whose winding makes its geometric normal +Z (a one-sided
     sheet), no light (the geometry maps need none)."""

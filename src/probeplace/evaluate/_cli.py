@@ -49,25 +49,14 @@ def add_parser(sub) -> None:
     e.set_defaults(func=run)
 
 
-def run(args: argparse.Namespace) -> int:
-    import jax
-
+def _checked_inputs(args: argparse.Namespace):
+    """Every input checked before the scene is loaded and anything is baked or rendered: (path, config,
+    bake config or None, ProbeSet or None)."""
     from .._core import load_probe_set
-    from ..probes import (
-        BakeConfig,
-        bake_depth_for,
-        bake_probes,
-        check_bake_settings,
-        load_probes,
-        path_traced_radiance,
-        save_probes,
-    )
+    from ..probes import BakeConfig
     from ..probes._trace import TraceConfig
-    from ..render import default_caster
-    from ..scene import load_scene
-    from . import EvalConfig, evaluate, write_evaluation
+    from . import EvalConfig
 
-    # ---- every input checked before the scene is loaded and anything is baked or rendered
     path = Path(args.probes)
     if path.suffix not in (".json", ".npz"):
         raise ConfigError(f"--probes must be a ProbeSet .json or a baked .npz, got {path}")
@@ -95,12 +84,31 @@ def run(args: argparse.Namespace) -> int:
             load_mitsuba()
         except ImportError as e:
             raise ConfigError(f"--backend mitsuba: {e}") from None
-    if path.suffix == ".json":
-        bake_cfg = BakeConfig(radiance_res=args.radiance_res, geometry_res=args.geometry_res, progress=True)
-        if isinstance(args.bake_spp, bool) or args.bake_spp < 1:
-            raise ConfigError(f"--bake-spp must be a positive integer, got {args.bake_spp}")
-        probes, _ = load_probe_set(path)
+    if path.suffix == ".npz":
+        return path, config, None, None
+    bake_cfg = BakeConfig(radiance_res=args.radiance_res, geometry_res=args.geometry_res, progress=True)
+    if isinstance(args.bake_spp, bool) or args.bake_spp < 1:
+        raise ConfigError(f"--bake-spp must be a positive integer, got {args.bake_spp}")
+    probes, _ = load_probe_set(path)
+    return path, config, bake_cfg, probes
 
+
+def run(args: argparse.Namespace) -> int:
+    import jax
+
+    from ..probes import (
+        bake_depth_for,
+        bake_probes,
+        check_bake_settings,
+        load_probes,
+        path_traced_radiance,
+        save_probes,
+    )
+    from ..render import default_caster
+    from ..scene import load_scene
+    from . import evaluate, write_evaluation
+
+    path, config, bake_cfg, probes = _checked_inputs(args)
     scene = load_scene(args.scene)
     views = [c.name for c in scene.views]
     if not views:
