@@ -19,6 +19,15 @@ reference's noise floor (docs/evaluate.md). ``gpu`` is null when ``jax.devices("
 device; with one it holds ``gpu_*`` figures: the 1920×1080-ray trace time and the 1920×1080 glossy-indirect
 frame time (one GGX-like secondary ray per pixel traced through the probes and read from the baked maps),
 to set beside McGuire 2017's 4.4 ms (Living Room, GTX 1080).
+
+Wavefront engine (``probes/_wavefront.py``, ``TraceConfig(engine="wavefront")``) on the same rays and
+settings as the per-ray hi-Z trace, timed interleaved with it: ``wavefront_vs_reference_cornell`` /
+``_sponza`` = its rays/s ÷ the per-ray engine's (medians; target ≥ 10; both engines' rays/s are in
+``cornell_*_rays_per_s`` and the per-scene blocks), ``lane_utilisation`` = march steps ÷ executed
+lane-steps of the wavefront (the smaller of the two scenes'; target ≥ 0.6), and per scene the rays
+whose integer fields differ and the largest difference in t (float32 rounding only:
+``wavefront_agreement``). The per-ray engine's time grows faster than the ray count (every vmapped loop
+waits for the batch's slowest ray), so the ratio grows with ``--rays``.
 Last stdout line: one JSON object, also written to benchmarks/results/tracer.json.
 """
 
@@ -40,6 +49,7 @@ from probeplace._core import ProbeSet
 from probeplace.geometry import EmbreeCaster
 from probeplace.probes import BakeConfig, bake_probes
 from probeplace.probes._trace import RAY_UNRESOLVED, TraceConfig, make_tracer, trace_light_field
+from probeplace.probes._wavefront import trace_wavefront
 
 
 def _unit(v):
@@ -111,22 +121,57 @@ def bench_scene(scene, dims, res, n_rays, repeats, seed=0):
         out[f"{h}_mean_probes_tried"] = float(np.mean(np.asarray(res_.probes_tried)))
         if h == "hiz":
             lf_fn = lambda c=compiled, tr=tr: c(tr, o, d)
+            per_ray = res_
+    # The wavefront engine, same settings and rays (its stats: executed lane-steps).
+    trw = make_tracer(lf, scene.bounds, config=TraceConfig(hierarchy="hiz", engine="wavefront"))
+    t0 = time.perf_counter()
+    compiled_w = trace_wavefront.lower(trw, o, d).compile()
+    out["wavefront_compile_s"] = time.perf_counter() - t0
+    wf_fn = lambda: compiled_w(trw, o, d)
+    wf, stats = jax.block_until_ready(wf_fn())
+    out |= wavefront_agreement(per_ray, wf)
+    out["wavefront_lane_utilisation"] = float(np.sum(np.asarray(wf.steps))) / stats.lane_steps()
+    out["wavefront_lanes"], out["wavefront_steps_per_chunk"] = list(stats.lanes), stats.steps_per_chunk
     ref_fn = lambda: ref.closest_hit(o_np, d_np)
     ref_fn()
-    t_lf, t_ref = [], []
+    t_lf, t_wf, t_ref = [], [], []
     for _ in range(repeats):  # interleaved
         t0 = time.perf_counter()
         jax.block_until_ready(lf_fn())
         t_lf.append(time.perf_counter() - t0)
         t0 = time.perf_counter()
+        jax.block_until_ready(wf_fn())
+        t_wf.append(time.perf_counter() - t0)
+        t0 = time.perf_counter()
         ref_fn()
         t_ref.append(time.perf_counter() - t0)
     out["lf_s"] = statistics.median(t_lf)
+    out["wavefront_s"] = statistics.median(t_wf)
     out["embree_1t_s"] = statistics.median(t_ref)
     out["lf_rays_per_s"] = len(o_np) / out["lf_s"]
+    out["wavefront_rays_per_s"] = len(o_np) / out["wavefront_s"]
+    out["wavefront_vs_reference"] = out["wavefront_rays_per_s"] / out["lf_rays_per_s"]
     out["embree_1t_rays_per_s"] = len(o_np) / out["embree_1t_s"]
     out["steps_hiz"], out["steps_two_level"] = steps["hiz"], steps["two_level"]
     return out, lf
+
+
+def wavefront_agreement(per_ray, wf) -> dict:
+    """How far the wavefront engine's answers are from the per-ray engine's: rays whose integer fields
+    (status, probe, texel, steps, probes tried, fallback) differ, and the largest difference in t. Both
+    can be non-zero through float32 rounding alone: the engines are different XLA programs, contracted
+    into FMAs differently (``probes/_wavefront.py``), and a rounding can move a cell crossing by a step."""
+    differ = np.zeros(len(np.asarray(per_ray.status)), bool)
+    for f in ("status", "probe", "texel", "steps", "probes_tried", "fallback"):
+        a, b = np.asarray(getattr(per_ray, f)), np.asarray(getattr(wf, f))
+        differ |= (a != b).reshape(len(a), -1).any(axis=1)
+    ta, tb = np.asarray(per_ray.t, np.float64), np.asarray(wf.t, np.float64)
+    differ |= np.isfinite(ta) != np.isfinite(tb)
+    fin = np.isfinite(ta) & np.isfinite(tb)
+    return {
+        "wavefront_rays_differing": int(differ.sum()),
+        "wavefront_max_abs_dt": float(np.max(np.abs(ta[fin] - tb[fin]), initial=0.0)),
+    }
 
 
 def hierarchy_steps(scene, dims, resolutions, n_rays, seed=0) -> dict:
@@ -244,6 +289,9 @@ def main(argv=None) -> dict:
     result["cornell_lf_vs_embree_1t"] = cornell["lf_rays_per_s"] / cornell["embree_1t_rays_per_s"]
     result["cornell_unresolved_share"] = cornell["hiz_unresolved_share"]
     result["hiz_vs_two_level_steps"] = cornell["steps_hiz"] / cornell["steps_two_level"]
+    result["cornell_wavefront_rays_per_s"] = cornell["wavefront_rays_per_s"]
+    result["wavefront_vs_reference_cornell"] = cornell["wavefront_vs_reference"]
+    util = [cornell["wavefront_lane_utilisation"]]
     n_h = max(args.rays // 4, 500)
     steps = hierarchy_steps(load_scene("cornell_box"), (4, 4, 4), (128, 256), n_h)
     result["cornell_hierarchy_steps"] = steps
@@ -254,6 +302,8 @@ def main(argv=None) -> dict:
     except Exception as e:  # the scene lives outside the repository
         result["sponza"] = None
         result["sponza_lf_rays_per_s"] = None
+        result["sponza_wavefront_rays_per_s"] = None
+        result["wavefront_vs_reference_sponza"] = None
         result["sponza_note"] = f"crytek_sponza not loaded: {e}"
     else:
         sponza, _ = bench_scene(sponza_scene, (8, 4, 4), 64, args.rays, args.repeats)
@@ -261,10 +311,14 @@ def main(argv=None) -> dict:
         result["sponza_lf_rays_per_s"] = sponza["lf_rays_per_s"]
         result["sponza_lf_vs_embree_1t"] = sponza["lf_rays_per_s"] / sponza["embree_1t_rays_per_s"]
         result["sponza_hiz_vs_two_level_steps"] = sponza["steps_hiz"] / sponza["steps_two_level"]
+        result["sponza_wavefront_rays_per_s"] = sponza["wavefront_rays_per_s"]
+        result["wavefront_vs_reference_sponza"] = sponza["wavefront_vs_reference"]
+        util.append(sponza["wavefront_lane_utilisation"])
         steps = hierarchy_steps(sponza_scene, (8, 4, 4), (128, 256), n_h)
         result["sponza_hierarchy_steps"] = steps
         for r in (128, 256):
             result[f"sponza_hiz_vs_two_level_steps_r{r}"] = steps[f"r{r}"]["hiz_vs_two_level_steps"]
+    result["lane_utilisation"] = min(util)
     ev = cornell_eval(load_scene("cornell_box"), quick=args.quick)
     result["cornell_eval"] = ev
     result["cornell_glossy_mse"] = ev["mse_glossy_indirect"]

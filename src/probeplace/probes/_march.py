@@ -172,54 +172,62 @@ def _next_cell(tr, pc: _Piece, level, ij, ij_adv, advance, t, at_start):
     return level_new, ij_new
 
 
-def _trace_segment(tr, p, o, d, ta, tb, t_min, state):
-    """March one octant piece [ta, tb] of the ray (probe-relative origin ``o``) in probe ``p``; the
-    single-probe trace began at ``t_min``.
+def _march_step(tr, p, pc: _Piece, tb, span, t_min, c):
+    """ONE march step of an octant piece [ta, tb] (``span`` = tb − ta) in probe ``p``, whose single-probe
+    trace began at ``t_min``: test the current cell (skip, deep or the fine surfel test, by level) and
+    move to the next cell or level. ``c`` = (status, t, steps, texel, level, ij); returns it updated.
+    The per-ray march (:func:`_trace_segment`) and the wavefront tracer (``_wavefront``) both step with
+    it, so they give the same answers."""
+    m = tr.march_res
+    offsets = jnp.asarray([tr.level_offset(k) for k in range(tr.n_levels)], jnp.int32)
+    o, d = pc.o, pc.d
+    _status, t, steps, texel, level, ij = c
+    cells = jnp.right_shift(jnp.int32(m), level)
+    t_exit, step_u = _cell_exit(pc, ij, cells, t, tb, span)
+    # Skip test: the whole cell's ray interval in front of every candidate surfel's lower bound?
+    # Deep test: the ray, where it is now, beyond every fine cell's upper bound (behind them all)?
+    flat = offsets[level] + ij[0] * cells + ij[1]
+    rho_t = jnp.linalg.norm(o + t * d)
+    skip = jnp.maximum(rho_t, jnp.linalg.norm(o + t_exit * d)) < tr.bound_flat[p, flat]
+    deep = rho_t > tr.upper_flat[p, flat]
+    at_fine = level == 0
+    fine, t_hit, fine_texel = _surfel_test(tr, p, pc, ij, t, t_exit)
+    fine_texel = jnp.where(at_fine, fine_texel, _cell_at(pc, t, jnp.int32(m)) // tr.sub)
+    status = jnp.where(deep, jnp.int32(UNKNOWN), jnp.where(at_fine, fine, jnp.int32(MISS)))
+    advance = jnp.where(at_fine, status == MISS, skip & ~deep)
+    step = jnp.where(step_u, jnp.array([0, 1], jnp.int32), jnp.array([1, 0], jnp.int32))
+    ij_adv = ij + step * jnp.where(step_u, pc.du[0], pc.du[1]).astype(jnp.int32)
+    level_new, ij_new = _next_cell(tr, pc, level, ij, ij_adv, advance, t, t <= t_min)
+    t_new = jnp.where(advance, t_exit, jnp.where(status == HIT, t_hit, t))
+    texel_new = jnp.where(status != MISS, fine_texel, texel)
+    # Left the face (numerically) before tb: end the piece.
+    out = jnp.any((ij_new < 0) | (ij_new >= jnp.right_shift(jnp.int32(m), level_new)))
+    t_new = jnp.where(out & (status == MISS), tb, t_new)
+    return status, t_new, steps + 1, texel_new, level_new, ij_new
 
-    ``state`` = (status, t, steps, texel); returns it updated. Continues only while status == MISS.
+
+def _segment_go(tr, status, ta, tb):
+    """Whether an octant piece [ta, tb] is marched at all: the probe's trace is still free (MISS) and the
+    piece is not a numerically empty sliver."""
+    return (status == MISS) & (tb - ta > 1e-6 * tr.t_far)
+
+
+def _segment_start(tr, o, d, ta, tb, state):
+    """Set up the march of one octant piece [ta, tb] of the ray (probe-relative origin ``o``), continuing
+    the single-probe ``state`` = (status, t, steps, texel).
+
+    Returns:
+        (piece, span, go, step budget, march carry (status, t, steps, texel, level, ij)).
     """
     m = tr.march_res
     top, _ = _levels(tr)
     max_steps = tr.config.max_steps or 6 * m
-    offsets = jnp.asarray([tr.level_offset(k) for k in range(tr.n_levels)], jnp.int32)
     pc = _piece(o, d, ta, tb)
     span = tb - ta
-
-    def body(c):
-        _status, t, steps, texel, level, ij = c
-        cells = jnp.right_shift(jnp.int32(m), level)
-        t_exit, step_u = _cell_exit(pc, ij, cells, t, tb, span)
-        # Skip test: the whole cell's ray interval in front of every candidate surfel's lower bound?
-        # Deep test: the ray, where it is now, beyond every fine cell's upper bound (behind them all)?
-        flat = offsets[level] + ij[0] * cells + ij[1]
-        rho_t = jnp.linalg.norm(o + t * d)
-        skip = jnp.maximum(rho_t, jnp.linalg.norm(o + t_exit * d)) < tr.bound_flat[p, flat]
-        deep = rho_t > tr.upper_flat[p, flat]
-        at_fine = level == 0
-        fine, t_hit, fine_texel = _surfel_test(tr, p, pc, ij, t, t_exit)
-        fine_texel = jnp.where(at_fine, fine_texel, _cell_at(pc, t, jnp.int32(m)) // tr.sub)
-        status = jnp.where(deep, jnp.int32(UNKNOWN), jnp.where(at_fine, fine, jnp.int32(MISS)))
-        advance = jnp.where(at_fine, status == MISS, skip & ~deep)
-        step = jnp.where(step_u, jnp.array([0, 1], jnp.int32), jnp.array([1, 0], jnp.int32))
-        ij_adv = ij + step * jnp.where(step_u, pc.du[0], pc.du[1]).astype(jnp.int32)
-        level_new, ij_new = _next_cell(tr, pc, level, ij, ij_adv, advance, t, t <= t_min)
-        t_new = jnp.where(advance, t_exit, jnp.where(status == HIT, t_hit, t))
-        texel_new = jnp.where(status != MISS, fine_texel, texel)
-        # Left the face (numerically) before tb: end the piece.
-        out = jnp.any((ij_new < 0) | (ij_new >= jnp.right_shift(jnp.int32(m), level_new)))
-        t_new = jnp.where(out & (status == MISS), tb, t_new)
-        return status, t_new, steps + 1, texel_new, level_new, ij_new
-
     status, t, steps, texel = state
     start = jnp.maximum(t, ta)
-    go = (status == MISS) & (span > 1e-6 * tr.t_far)
+    go = _segment_go(tr, status, ta, tb)
     seg_steps = steps + max_steps  # the step budget is per octant piece
-
-    def cond(c):
-        # No lax.cond around the loop: under vmap a batched predicate would batch every closed-over map.
-        status, t, steps = c[0], c[1], c[2]
-        return go & (status == MISS) & (t < tb) & (steps < seg_steps)
-
     level0 = jnp.int32(top)
     if tr.config.hierarchy == "hiz":
         # Start where the piece spans a cell or two (its extent on the map in finest cells), not at the
@@ -228,13 +236,53 @@ def _trace_segment(tr, p, o, d, ta, tb, t_min, state):
         fit = jnp.floor(jnp.log2(jnp.maximum(extent, 1.0))).astype(jnp.int32)
         level0 = jnp.clip(fit, 0, top)
     cells0 = jnp.right_shift(jnp.int32(m), level0)
-    init = (status, start, steps, texel, level0, _cell_at(pc, start, cells0))
-    out = jax.lax.while_loop(cond, body, init)
-    status, t, steps2, texel = out[:4]
+    return pc, span, go, seg_steps, (status, start, steps, texel, level0, _cell_at(pc, start, cells0))
+
+
+def _segment_running(go, tb, seg_steps, c):
+    """Whether the march of a piece takes another step (``c``: the march carry)."""
+    status, t, steps = c[0], c[1], c[2]
+    return go & (status == MISS) & (t < tb) & (steps < seg_steps)
+
+
+def _segment_end(go, tb, seg_steps, c, state):
+    """The single-probe state after the march of a piece stopped (``state``: the state it started from)."""
+    status, t, steps, texel = c[:4]
     # Running out of steps inside the piece is "unknown" (the ray is not known to be free beyond t).
-    status = jnp.where(go & (status == MISS) & (t < tb) & (steps2 >= seg_steps), UNKNOWN, status)
+    status = jnp.where(go & (status == MISS) & (t < tb) & (steps >= seg_steps), UNKNOWN, status)
     t = jnp.where(go, t, state[1])
-    return status, t, steps2, texel
+    return status, t, steps, texel
+
+
+def _trace_segment(tr, p, o, d, ta, tb, t_min, state):
+    """March one octant piece [ta, tb] of the ray (probe-relative origin ``o``) in probe ``p``; the
+    single-probe trace began at ``t_min``.
+
+    ``state`` = (status, t, steps, texel); returns it updated. Continues only while status == MISS.
+    """
+    pc, span, go, seg_steps, init = _segment_start(tr, o, d, ta, tb, state)
+
+    def cond(c):
+        # No lax.cond around the loop: under vmap a batched predicate would batch every closed-over map.
+        return _segment_running(go, tb, seg_steps, c)
+
+    out = jax.lax.while_loop(cond, lambda c: _march_step(tr, p, pc, tb, span, t_min, c), init)
+    return _segment_end(go, tb, seg_steps, out, state)
+
+
+def _probe_pieces(tr, p, origin, direction, t_min, t_max):
+    """(probe-relative origin, bounds (5,) of the ≤ 4 octant pieces of [t_min, t_max]: the ray split at
+    the probe's three coordinate planes, McGuire 2017 §4.1)."""
+    o = origin - tr.pos_world[p]
+    dt = o.dtype
+    safe_d = jnp.where(jnp.abs(direction) > 1e-12, direction, 1e-12)
+    tc = jnp.sort(jnp.clip(-o / safe_d, t_min, t_max))
+    return o, jnp.concatenate([t_min[None], tc, t_max[None]]).astype(dt)
+
+
+def _probe_state(t_min):
+    """A single-probe trace's state before its first piece: (status MISS, t, steps, texel)."""
+    return jnp.int32(MISS), t_min, jnp.int32(0), jnp.zeros(2, jnp.int32)
 
 
 def trace_probe(
@@ -257,16 +305,11 @@ def trace_probe(
         (status MISS=0 / HIT=1 / UNKNOWN=2, t of the hit or of the last point the probe saw free (t_max on
         a miss), march steps, geometry texel (row, col) of the hit or of the unknown).
     """
-    o = origin - tr.pos_world[p]
-    dt = o.dtype
-    safe_d = jnp.where(jnp.abs(direction) > 1e-12, direction, 1e-12)
-    tc = jnp.sort(jnp.clip(-o / safe_d, t_min, t_max))
-    bounds = jnp.concatenate([t_min[None], tc, t_max[None]]).astype(dt)
-    state = (jnp.int32(MISS), t_min, jnp.int32(0), jnp.zeros(2, jnp.int32))
+    o, bounds = _probe_pieces(tr, p, origin, direction, t_min, t_max)
 
     def seg(k, st):
         return _trace_segment(tr, p, o, direction, bounds[k], bounds[k + 1], t_min, st)
 
-    status, t, steps, texel = jax.lax.fori_loop(0, 4, seg, state)
+    status, t, steps, texel = jax.lax.fori_loop(0, 4, seg, _probe_state(t_min))
     t = jnp.where(status == MISS, t_max, t)
     return status, t, steps, texel
