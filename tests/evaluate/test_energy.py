@@ -19,10 +19,11 @@ Tolerance: ``K_SIGMA`` standard errors of the mean difference, from
   of them (the view sees five walls; glossy rays reach all six) and each probe's texels are baked
   independently. Reads spread over many texels of each probe only lower it.
 
-The light-field *trace* (glossy rays) currently loses energy in closed scenes: it reports some of the
-furnace's glossy rays as misses, though no ray can leave the box (−6.9 % glossy energy measured). That is
-checked against the *perfect trace* (exact hit, radiance read from the same probes there: the same
-baked texels, so the bake noise cancels) and is a strict xfail until the tracer is fixed.
+The light-field *trace* (glossy rays) must not lose energy either: no ray can leave a closed box, so a
+miss is an error. It is checked against the *perfect trace* (exact hit, radiance read from the same probes
+there: the same baked texels, so the bake noise cancels). Before the tracer bounded a corner texel by both
+walls' planes (``probes._march._partners``) 7 % of the furnace's glossy rays slipped out as misses
+(−6.9 % glossy energy); now −0.6 %, within the noise.
 
 Slow cases (scenes with one emitter, where probes do have representational error) are at the end.
 """
@@ -161,11 +162,6 @@ def test_furnace_glossy_energy_of_the_perfect_trace(furnace):
     assert 1.0 < full / view_indep < 1.12, (full, view_indep)
 
 
-@pytest.mark.xfail(
-    strict=True,
-    reason="the light-field tracer reports some glossy rays of the closed furnace box as misses (no ray "
-    "can leave it: they slip past a corner texel's surfel), losing ~7 % of the glossy energy; probes._trace",
-)
 def test_furnace_glossy_energy_of_the_light_field_trace(furnace):
     _, result = furnace
     p, q, se = _means(result, "probe_glossy_indirect", "perfect_trace_glossy_indirect")

@@ -71,7 +71,11 @@ def _box_exit(o, d, hi):
     return t.min(axis=-1)
 
 
-@pytest.mark.parametrize("hierarchy", ["flat", "two_level", "hiz"])
+# The default hierarchy in the default run; the other two are held to it by test_hierarchies_are_conservative.
+@pytest.mark.parametrize(
+    "hierarchy",
+    [pytest.param("flat", marks=pytest.mark.slow), pytest.param("two_level", marks=pytest.mark.slow), "hiz"],
+)
 def test_single_probe_hits_planar_walls_exactly(room, hierarchy):
     scene, lf = room
     tr = make_tracer(lf, scene.bounds, config=TraceConfig(hierarchy=hierarchy))
@@ -84,7 +88,9 @@ def test_single_probe_hits_planar_walls_exactly(room, hierarchy):
     exact = _box_exit(o, d, ROOM_HI)
     assert np.all(status != 0)  # the room is closed: never a miss
     hit = status == HIT
-    assert hit.mean() > 0.98
+    # A ray through a texel that straddles a corner and meets the other wall's plane first is unknown
+    # (``_march._partners``: the crease test cannot tell a corner from some silhouettes): 4.7 % here.
+    assert hit.mean() > 0.94
     # A surfel of a planar wall is that plane, so the crossing is exact up to float32 rounding — except in
     # texels that straddle a corner of the room, whose surfel is the wall at the texel centre: there the
     # error is bounded by the texel's footprint on the wall actually hit.
@@ -94,6 +100,33 @@ def test_single_probe_hits_planar_walls_exactly(room, hierarchy):
     footprint = np.linalg.norm(p, axis=1) * np.sqrt(4 * np.pi) / 32 * 2
     assert np.all(np.abs(t - exact)[hit] <= footprint[hit])
     assert f(jnp.asarray(o, jnp.float32), jnp.asarray(d, jnp.float32))[1].dtype == jnp.float32
+
+
+@pytest.mark.parametrize(("res", "max_miss", "min_exact"), [(8, 0.01, 0.97), (16, 0.0, 0.99)])
+def test_closed_room_corners_let_no_ray_out(room, res, max_miss, min_exact):
+    """Rays from the walls of a closed room, traced through a 2×2×2 grid, must never miss, and hit the
+    wall the box exit names. A texel straddling a corner holds one wall's surfel; bounded by that plane
+    alone, a ray passing the corner behind the other wall left the room: 12 % misses at 8², 5 % at 16²
+    (hits 94 % exact). Both walls' planes bound a concave crease cell now (``_march._partners``; the
+    other wall's plane crossed first is unknown, for another probe): measured 0.7 % / 0 % misses,
+    98.0 % / 99.6 % of hits exact."""
+    scene, _ = room
+    grid = np.stack(np.meshgrid(*[(np.arange(2) + 0.5) / 2] * 3, indexing="ij"), -1).reshape(-1, 3)
+    tr = make_tracer(_bake(scene, grid * ROOM_HI, res), scene.bounds)
+    rng = np.random.default_rng(0)
+    n = 3000
+    axis, far_side = rng.integers(0, 3, n), rng.integers(0, 2, n).astype(bool)
+    o = rng.uniform(0.01, 1.0, (n, 3)) * ROOM_HI
+    o[np.arange(n), axis] = np.where(far_side, ROOM_HI[axis] - 1e-3, 1e-3)
+    d = _unit(rng.normal(size=(n, 3)))
+    outward = d[np.arange(n), axis] * np.where(far_side, -1.0, 1.0) < 0
+    d[outward, axis[outward]] *= -1  # into the room
+    out = trace_light_field(tr, jnp.asarray(o, jnp.float32), jnp.asarray(d, jnp.float32))
+    status, t = np.asarray(out.status), np.asarray(out.t, np.float64)
+    hit = status == RAY_HIT
+    exact = np.isclose(t, _box_exit(o, d, ROOM_HI), rtol=1e-3, atol=1e-3)
+    assert (status == RAY_MISS).mean() <= max_miss, (status == RAY_MISS).mean()
+    assert exact[hit].mean() >= min_exact, exact[hit].mean()
 
 
 def test_surfel_side_is_judged_from_the_probe(room):

@@ -11,7 +11,7 @@ import jax
 import jax.numpy as jnp
 from jaxtyping import Array, Float, Int
 
-from ._surfels import NEIGHBOURS
+from ._surfels import NEIGHBOURS, crease
 
 #: Status codes of a single-probe trace.
 MISS, HIT, UNKNOWN = 0, 1, 2
@@ -110,6 +110,22 @@ def _candidates(tr, ij):
     return rows, cols
 
 
+def _partners(tr, xs, n, has):
+    """Which candidate surfels bound a one-surface cell's free space: its own (candidate 0) and the
+    footprint neighbours meeting it in a concave crease (``_surfels.crease``), whose surface is the nearer
+    plane. With the own plane alone, a ray through a room's corner texel passes behind the floor while
+    in front of the wall's plane and leaves the room as a false miss. A partner's plane crossed first is
+    unknown, not a hit (``_surfel_test``): the crease test also passes some silhouettes (a pillar's side
+    before a wall), where the partner plane runs through free space — on Sponza 16×8×8 at 64², taking
+    those crossings as hits lowered the agreement with exact casting from 0.83 to 0.78."""
+    own = jnp.arange(xs.shape[0]) == 0
+    if tr.config.edge_tol is None:
+        return own
+    w = xs / jnp.maximum(jnp.linalg.norm(xs, axis=-1, keepdims=True), 1e-12)
+    concave, _ = crease(xs[:1], n[:1], w[:1], xs, n, w, tr.config.edge_tol)
+    return own | (concave & has & has[0])
+
+
 def _surfel_test(tr, p, pc: _Piece, ij, t, t_exit):
     """The fine test of march cell ``ij`` over [t, t_exit] (module docstring): (status, t of the hit,
     geometry texel). Candidate 0 is the cell's own surfel; in an ambiguous cell every one counts."""
@@ -138,11 +154,19 @@ def _surfel_test(tr, p, pc: _Piece, ij, t, t_exit):
     all_hit = jnp.all(hit | starts_here) & jnp.any(~starts_here)
     all_hit = all_hit & (t_last - t_first <= tr.config.thickness * jnp.linalg.norm(o + t_first * d))
     t_amb = jnp.where(hit[0], t_hit[0], t_first)
-    one = jnp.where(hit[0], HIT, jnp.where(has[0] & (g0[0] < -tau[0]), UNKNOWN, MISS))
     several = jnp.where(all_hit, HIT, jnp.where(jnp.any(blocks), UNKNOWN, MISS))
+    # One surface: its own surfel decides a hit; a concave-crease partner's plane (``_partners``) crossed
+    # first, or the ray starting deep behind either, is unknown from the cell's entry — the crease may be
+    # a corner (the partner is the surface there) or a silhouette taken for one (it is not): another probe
+    # decides.
+    partner = _partners(tr, xs, n, has)
+    t_partner = jnp.min(jnp.where(hit & partner & (jnp.arange(hit.shape[0]) > 0), t_hit, jnp.inf))
+    own_first = hit[0] & (t_hit[0] <= t_partner * (1 + 1e-3))
+    blocked = jnp.isfinite(t_partner) | jnp.any(partner & has & (g0 < -tau))
+    one = jnp.where(own_first, HIT, jnp.where(blocked, UNKNOWN, MISS))
     status = jnp.where(ambiguous, several, one).astype(jnp.int32)
     texel = jnp.stack([rows[0], cols[0]]) - 1
-    return status, jnp.where(ambiguous, t_amb, t_hit[0]), texel
+    return status, jnp.where(ambiguous, t_amb, jnp.where(one == HIT, t_hit[0], t)), texel
 
 
 def _next_cell(tr, pc: _Piece, level, ij, ij_adv, advance, t, at_start):

@@ -84,8 +84,22 @@ def _bounds(x, n, has, w9, thickness, big):
     return jnp.where(has, lo, big), jnp.where(has, jnp.minimum(hi, big), big)
 
 
-def connected(xb, nb, hb, wb, di: int, dj: int, tol: float) -> Bool[Array, "r r"]:
-    """Per interior texel: is it one surface with its neighbour at offset (di, dj)? (module docstring)
+def crease(xa, na, wa, xx, nx, wx, tol: float) -> tuple[Array, Array]:
+    """(concave, convex): do surfels A and X (points, normals turned toward the probe, sample directions;
+    broadcasting) meet in a concave or a convex crease (module docstring)? A concave crease's surface is
+    the *nearer* of the two planes, so a point is free only in front of both — the march's fine test and
+    its skip bounds use both planes there (``_march._surfel_test``)."""
+    ra, rx = jnp.linalg.norm(xa, axis=-1), jnp.linalg.norm(xx, axis=-1)
+    pa_x, px_a = plane_distance(xa, na, wx), plane_distance(xx, nx, wa)
+    fin = jnp.isfinite(pa_x) & jnp.isfinite(px_a)
+    concave = fin & (ra <= px_a * (1 + tol)) & (rx <= pa_x * (1 + tol))
+    convex = fin & (ra >= px_a * (1 - tol)) & (rx >= pa_x * (1 - tol))
+    return concave, convex
+
+
+def _pair(xb, nb, hb, wb, di: int, dj: int, tol: float) -> tuple[Bool[Array, "r r"], Bool[Array, "r r"]]:
+    """Per interior texel and its neighbour at offset (di, dj): (one surface?, a concave crease of two
+    surfaces?) (module docstring).
 
     Args:
         xb, nb, hb, wb: ONE probe's bordered (R+2)² maps: surfel points (probe-relative), normals turned
@@ -102,12 +116,9 @@ def connected(xb, nb, hb, wb, di: int, dj: int, tol: float) -> Bool[Array, "r r"
     pa_m, px_m = plane_distance(xa, na, wm), plane_distance(xx, nx, wm)
     smooth = jnp.isfinite(pa_m) & jnp.isfinite(px_m)
     smooth = smooth & (jnp.abs(pa_m - px_m) <= tol * jnp.minimum(pa_m, px_m))
-    ra, rx = jnp.linalg.norm(xa, axis=-1), jnp.linalg.norm(xx, axis=-1)
-    pa_x, px_a = plane_distance(xa, na, wx), plane_distance(xx, nx, wa)
-    fin = jnp.isfinite(pa_x) & jnp.isfinite(px_a)
-    concave = fin & (ra <= px_a * (1 + tol)) & (rx <= pa_x * (1 + tol))
-    convex = fin & (ra >= px_a * (1 - tol)) & (rx >= pa_x * (1 - tol))
-    return (ha & hx & (smooth | concave | convex)) | ~ha
+    concave, convex = crease(xa, na, wa, xx, nx, wx, tol)
+    both = ha & hx
+    return (both & (smooth | concave | convex)) | ~ha, both & concave
 
 
 def _uses(sub: int, di: int, dj: int, m: int) -> Array:
@@ -137,14 +148,20 @@ def probe_cells(xb, nb, hb, wb, w9_cells, w9_texels, *, sub, tol, thickness, big
     ambiguous = jnp.zeros((m, m), bool)
     if tol is None:
         return lower, upper, ambiguous
-    for di, dj in NEIGHBOURS:
-        ambiguous = ambiguous | (_uses(sub, di, dj, m) & ~up(connected(xb, nb, hb, wb, di, dj, tol)))
-    for di, dj in NEIGHBOURS:
+    pairs = {(di, dj): _pair(xb, nb, hb, wb, di, dj, tol) for di, dj in NEIGHBOURS}
+    for (di, dj), (one, _) in pairs.items():
+        ambiguous = ambiguous | (_uses(sub, di, dj, m) & ~up(one))
+    for (di, dj), (_, concave) in pairs.items():
         nbr = lambda a, di=di, dj=dj: a[1 + di : r + 1 + di, 1 + dj : r + 1 + dj]
         lo, hi = _bounds(nbr(xb), nbr(nb), nbr(hb), w9_texels, thickness, big)
         use = _uses(sub, di, dj, m) & ambiguous
         lower = jnp.where(use, jnp.minimum(lower, up(lo)), lower)
         upper = jnp.where(use, jnp.minimum(upper, up(hi)), upper)
+        # A concave crease partner of a one-surface cell: its plane also bounds the cell (the fine test
+        # reads it), bounded over the cell's own cone — a ray skipped past it would slip through the corner.
+        partner = _uses(sub, di, dj, m) & ~ambiguous & up(concave)
+        lo_cell, _ = _bounds(up(nbr(xb)), up(nbr(nb)), up(nbr(hb)), w9_cells, thickness, big)
+        lower = jnp.where(partner, jnp.minimum(lower, lo_cell), lower)
     return lower, upper, ambiguous
 
 

@@ -21,7 +21,11 @@ thickness shell a ray moving deeper is a hit, one moving out continues (a surfel
 approximation of a curved surface). A ray whose origin lies in a surfel's shell starts on that surface
 (a secondary ray): it is not a hit on it. A cell where the texel's surfel and a neighbour's are not one
 surface (a silhouette, ``_surfels``) is *ambiguous*: only "in front of every candidate surfel" passes;
-anything else is unknown, for another probe to decide.
+anything else is unknown, for another probe to decide. A one-surface cell whose surfel meets a neighbour's
+in a *concave crease* (a room's corner) is bounded by both planes: in front of both is free, its own plane
+crossed first is a hit, the neighbour's is unknown (``_march._partners``); with one plane a ray slips
+behind the floor near a corner.
+A probe's miss counts only if the probe sees where the ray's trace ends (``_after_probe``).
 
 **Hierarchy.** Every cell has a conservative lower bound of its candidate surfels' radial distance over
 its cone (min-MIPped) and an upper bound beyond which a point is deep behind them (max-MIPped; Wang 2019
@@ -68,7 +72,7 @@ from scipy.spatial import cKDTree
 from .._core import ConfigError, LightFieldProbes, add_border, oct_encode, texel_directions
 from ._bake import _warn_probe_layout
 from ._index import GridIndex, VoxelIndex, grid_index, nearest_index, voxel_index
-from ._march import HIT, MISS, UNKNOWN, _candidates, trace_probe
+from ._march import HIT, MISS, UNKNOWN, _candidates, _partners, trace_probe
 from ._surfels import all_probe_cells
 
 #: Status codes of :class:`TraceResult` (``UNRESOLVED``: no probe could decide).
@@ -411,7 +415,8 @@ def _sees(tr: LightFieldTracer, probes: Int[Array, " k"], x: Float[Array, "3"]) 
         xs, n, has = tr.surfel_x[p, rows, cols], tr.surfel_n[p, rows, cols], tr.has_surface[p, rows, cols]
         g = jnp.sum((rel[None, :] - xs) * n, axis=-1)
         front = ~has | (g > tr.config.fallback_margin * jnp.linalg.norm(xs, axis=-1))
-        return jnp.where(tr.ambiguous[p, ij[0], ij[1]], jnp.all(front), front[0])
+        # one surface: in front of its own plane and its concave-crease partners' (``_march._partners``)
+        return jnp.all(front | ~jnp.where(tr.ambiguous[p, ij[0], ij[1]], True, _partners(tr, xs, n, has)))
 
     return (probes >= 0) & tr.usable[q] & jax.vmap(one)(q, ij, rel)
 
@@ -530,11 +535,22 @@ def _pick(tr: LightFieldTracer, p_idx, from_index, p_fb, c: _RayState):
     return p, (p >= 0) & (c.n < tr.config.max_probes), from_fb
 
 
-def _after_probe(tr: LightFieldTracer, c: _RayState, p, found, from_index, from_fb, cell, slot, probe_out):
+def _after_probe(
+    tr: LightFieldTracer, c: _RayState, p, found, from_index, from_fb, cell, slot, probe_out, x_end
+):
     """The ray's state after the single-probe trace ``probe_out`` = (status, t, steps, texel) of probe
-    ``p`` (ignored unless ``found``: then the ray has no probe left, status -1)."""
+    ``p`` (ignored unless ``found``: then the ray has no probe left, status -1). ``x_end`` is where the
+    ray's trace ends (``_ray_t_end``).
+
+    A probe's MISS is believed only if the probe sees ``x_end`` (:func:`_sees`): a march that slips past a
+    texel's surfel (a corner texel, whose one surfel stands for two walls) would otherwise call a ray free
+    that no ray could leave — in a closed furnace box that lost ~7 % of the glossy energy. Such a miss
+    becomes UNKNOWN with no progress (t unchanged): the next probe retraces the whole unresolved part."""
     n_max = tr.config.max_probes
     st, t2, s2, texel = probe_out
+    doubtful = found & (st == MISS) & ~_sees(tr, jnp.maximum(p, 0)[None], x_end)[0]
+    st = jnp.where(doubtful, UNKNOWN, st)
+    t2 = jnp.where(doubtful, c.t, t2)
     st = jnp.where(found, st, -1)  # -1: nothing left to try
     t2 = jnp.where(found & (st == UNKNOWN), jnp.maximum(t2, c.t), jnp.where(found, t2, c.t))
     visited = c.visited.at[jnp.minimum(c.n, n_max - 1)].set(jnp.where(found, p, c.visited[n_max - 1]))
@@ -599,7 +615,8 @@ def trace_ray(
         p_fb = _seeing_probe(tr, x, c.visited) if tr.config.fallback_probes > 0 else jnp.int32(-1)
         p, found, from_fb = _pick(tr, p_idx, from_index, p_fb, c)
         out = trace_probe(tr, jnp.maximum(p, 0), origin, direction, c.t, t_end)
-        return _after_probe(tr, c, p, found, from_index, from_fb, cell, slot, out)
+        x_end = origin + t_end * direction
+        return _after_probe(tr, c, p, found, from_index, from_fb, cell, slot, out, x_end)
 
     c = jax.lax.while_loop(lambda c: c.st == UNKNOWN, body, _ray_state(tr, origin.dtype))
     return _ray_result(c)

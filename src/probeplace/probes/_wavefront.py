@@ -273,7 +273,15 @@ def _step(tr: LightFieldTracer, lanes: _Lanes, block: int, block_fb: int) -> _La
     probe_out = (pst, jnp.where(pst == MISS, lanes.t_end, pt), psteps, ptexel)  # as ``trace_probe``
     with jax.named_scope("wf_probe_end"):
         rs = jax.vmap(lambda *a: _after_probe(tr, *a))(
-            lanes.rs, lanes.p, lanes.found, lanes.from_index, lanes.from_fb, lanes.cell, lanes.slot, probe_out
+            lanes.rs,
+            lanes.p,
+            lanes.found,
+            lanes.from_index,
+            lanes.from_fb,
+            lanes.cell,
+            lanes.slot,
+            probe_out,
+            lanes.origin + lanes.t_end[:, None] * lanes.direction,
         )
     phase = jnp.where(marching, jnp.where(ended, jnp.int32(PIECE), jnp.int32(MARCH)), lanes.phase)
     phase = jnp.where(end_probe, jnp.where(rs.st == UNKNOWN, jnp.int32(SELECT), jnp.int32(DONE)), phase)
