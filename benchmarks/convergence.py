@@ -35,15 +35,15 @@ from __future__ import annotations
 import argparse
 import hashlib
 import json
-import os
 import sys
-import tempfile
 import time
 from pathlib import Path
 
 import jax
 import jax.numpy as jnp
 import numpy as np
+
+from probeplace._core import scene_box, write_text_atomic
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 from _common import RESULTS, env_info, setup_scene_path, write_result
@@ -87,17 +87,9 @@ def dims_of(grid: str) -> tuple[int, int, int]:
 
 def grid_positions(scene, dims) -> np.ndarray:
     """Cell centres of a dims grid over the scene's bounding box."""
-    lo, hi = (np.asarray(b, np.float64) for b in scene.bounds)
+    lo, hi = scene_box(scene)
     axes = [(np.arange(n) + 0.5) / n for n in dims]
     return np.stack(np.meshgrid(*axes, indexing="ij"), -1).reshape(-1, 3) * (hi - lo) + lo
-
-
-def write_json_atomic(path: Path, obj: dict) -> None:
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{path.stem}.", suffix=".tmp")
-    with os.fdopen(fd, "w") as f:
-        json.dump(obj, f, indent=1, sort_keys=True)
-    os.replace(tmp, path)
 
 
 class Bench:
@@ -211,22 +203,20 @@ class Bench:
             log(f"{path.name}: cached")
             return json.loads(path.read_text())
         from probeplace.evaluate import perfect_trace, score, shade_probes
-        from probeplace.probes import radiance_mips
+        from probeplace.probes import check_bake_settings, glossy_maps
 
         log(f"{self.key} {grid} r{res} seed {seed}: baking {int(np.prod(dims_of(grid)))} probes")
         lf, times = self.bake(dims_of(grid), res, seed)
         log(f"{self.key} {grid} r{res} seed {seed}: baked in {times['bake_s']:.1f} s; evaluating")
         ref, prim, crn, _ = self.steps(seed)
-        check = getattr(__import__("probeplace.probes", fromlist=["x"]), "check_bake_settings", None)
-        if check is not None:
-            check(lf, scene_name=self.scene.name, eval_max_depth=self.config.max_depth)
+        check_bake_settings(lf, scene_name=self.scene.name, eval_max_depth=self.config.max_depth)
         t0 = time.perf_counter()
-        mips = radiance_mips(lf) if self.config.glossy_filter == "mip" else None
-        shading = shade_probes(self.scene, lf, prim, self.config, mips=mips)
-        perfect = perfect_trace(lf, prim, self.config, caster=self.caster, mips=mips)
+        maps = glossy_maps(lf, self.config.glossy_filter, include_emission=False)
+        shading = shade_probes(self.scene, lf, prim, self.config, maps=maps)
+        perfect = perfect_trace(lf, prim, self.config, caster=self.caster, maps=maps)
         m = score(self.scene, lf, self.view, self.config, seed, ref, prim, crn, shading, perfect).metrics
         out = summarise(m) | times | {"eval_s": time.perf_counter() - t0, "settings": settings}
-        write_json_atomic(path, out)
+        write_text_atomic(path, json.dumps(out, indent=1, sort_keys=True))
         log(
             f"{self.key} {grid} r{res} seed {seed}: glossy {out['mse_glossy']:.3g} (floor "
             f"{out['noise_floor_glossy']:.3g}, perfect {out['mse_glossy_perfect_trace']:.3g}), unresolved "

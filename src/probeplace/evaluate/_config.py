@@ -6,7 +6,7 @@ import dataclasses
 import math
 
 from .._core import ConfigError
-from ..probes._glossy import GLOSSY_FILTERS
+from ..probes._glossy import DEFAULT_GLOSSY_FILTER, GLOSSY_FILTERS
 from ..probes._shade import SHADINGS
 from ..probes._trace import TraceConfig
 
@@ -56,7 +56,7 @@ class EvalConfig:
     max_depth: int = 8
     shading: str = "lightfield"
     trace: TraceConfig = dataclasses.field(default_factory=TraceConfig)
-    glossy_filter: str = "depth_aware"
+    glossy_filter: str = DEFAULT_GLOSSY_FILTER
     glossy_lod_bias: float = 0.0
     perfect_trace_margin: float = 0.05
     agreement_rtol: float = 0.02

@@ -46,9 +46,9 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from .._core import ConfigError, LightFieldProbes, Scene, luminance
+from .._core import ConfigError, LightFieldProbes, Scene, luminance, scene_box
 from ..probes._bake import check_bake_settings
-from ..probes._glossy import radiance_mips
+from ..probes._glossy import glossy_maps
 from ..probes._trace import RAY_UNRESOLVED
 from ..render import default_caster, seed_from_key
 from ._config import EvalConfig
@@ -143,9 +143,9 @@ def evaluate(
     ref = render_reference(scene, camera, config, seed=seed, caster=caster)
     prim = sample_primary(scene, camera, config, seed=seed, caster=caster)
     crn = crn_reference(scene, prim, config, seed=seed, caster=caster)
-    mips = radiance_mips(lf) if config.glossy_filter == "mip" else None  # pre-filtered once, like a bake
-    shading = shade_probes(scene, lf, prim, config, mips=mips)
-    perfect = perfect_trace(lf, prim, config, caster=caster, mips=mips)
+    maps = glossy_maps(lf, config.glossy_filter, include_emission=False)  # built once, like a bake
+    shading = shade_probes(scene, lf, prim, config, maps=maps)
+    perfect = perfect_trace(lf, prim, config, caster=caster, maps=maps)
     return score(scene, lf, view, config, seed, ref, prim, crn, shading, perfect)
 
 
@@ -167,7 +167,7 @@ def _glossy_breakdown(scene, config: EvalConfig, prim, crn, shading, perfect, im
     st = shading.status
     gl = st >= 0
     n_gl = int(gl.sum())
-    lo, hi = (np.asarray(b, np.float64) for b in scene.bounds)
+    lo, hi = scene_box(scene)
     terms = glossy_terms(prim.w_glossy, shading.glossy, crn.radiance, perfect.radiance, st, S)
     agree, n_agree = hit_agreement(
         shading.t, perfect.t_exact, st, rtol=config.agreement_rtol, atol=1e-4 * float(np.linalg.norm(hi - lo))

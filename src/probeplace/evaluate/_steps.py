@@ -18,9 +18,9 @@ import jax.numpy as jnp
 import numpy as np
 from jaxtyping import Array, Float
 
-from .._core import Camera, LightFieldProbes, Scene
+from .._core import Camera, LightFieldProbes, Scene, scene_box
 from ..probes._bake import bake_depth_for
-from ..probes._glossy import glossy_trace, perfect_trace_radiance, radiance_mips
+from ..probes._glossy import glossy_maps, glossy_trace, perfect_trace_radiance
 from ..probes._shade import sh_coefficients, shade_irradiance
 from ..probes._trace import make_tracer
 from ..render import (
@@ -203,7 +203,7 @@ def sample_primary(scene: Scene, camera: Camera, config: EvalConfig, *, seed: in
     u1 = pu(seed_u, pix, smp, 1)
     o, d = camera_rays(camera, W, H, pix, u0[:, 1:3])
     hit = caster.closest_hit(o, d)
-    lo, hi = (np.asarray(b, np.float64) for b in scene.bounds)
+    lo, hi = scene_box(scene)
     offset_len = jnp.asarray(1e-4 * float(np.linalg.norm(hi - lo)), jnp.float32)
     s = _samples(scene.materials, jnp.float32(1.0), offset_len, o, d, hit, u1)
     valid = np.asarray(s.valid)
@@ -255,15 +255,16 @@ def crn_reference(
 
 
 def shade_probes(
-    scene: Scene, lf: LightFieldProbes, prim: PrimarySamples, config: EvalConfig, *, mips=None
+    scene: Scene, lf: LightFieldProbes, prim: PrimarySamples, config: EvalConfig, *, maps=None
 ) -> ProbeShading:
     """Probe shading of every sample: diffuse irradiance by ``config.shading`` and the glossy rays through
     the light-field tracer, read with ``config.glossy_filter``. Timed: the first run (compile) apart, then
-    the median of ``timing_repeats`` runs. The SH coefficients and radiance MIPs are built once before
-    (like the baked maps); ``mips``: :func:`probes.radiance_mips` of ``lf`` if already built."""
+    the median of ``timing_repeats`` runs. The SH coefficients and the glossy read's maps are built once
+    before (like the baked maps); ``maps``: :func:`probes.glossy_maps` of ``lf`` (reflected radiance,
+    ``config.glossy_filter``) if already built."""
     tracer = make_tracer(lf, scene.bounds, config=config.trace)
     sh_c = sh_coefficients(lf) if config.shading == "sh" else None
-    mips = radiance_mips(lf) if mips is None and config.glossy_filter == "mip" else mips
+    maps = glossy_maps(lf, config.glossy_filter, include_emission=False) if maps is None else maps
     g = len(prim.glossy_idx)
 
     def shade():
@@ -280,7 +281,7 @@ def shade_probes(
                 filter=config.glossy_filter,
                 lod_bias=config.glossy_lod_bias,
                 include_emission=False,
-                mips=mips,
+                maps=maps,
             )
         return jax.block_until_ready((e, res))
 
@@ -307,7 +308,7 @@ def shade_probes(
 
 
 def perfect_trace(
-    lf: LightFieldProbes, prim: PrimarySamples, config: EvalConfig, *, caster, mips=None
+    lf: LightFieldProbes, prim: PrimarySamples, config: EvalConfig, *, caster, maps=None
 ) -> PerfectTrace:
     """The glossy rays with a perfect trace: the exact hit (``caster.closest_hit``), radiance read from the
     probes there (``probes.perfect_trace_radiance``, same filter and footprint as the light-field read)."""
@@ -316,7 +317,7 @@ def perfect_trace(
     if len(prim.glossy_idx):
         h = caster.closest_hit(prim.origins, prim.directions)
         te = jnp.where(h.tri >= 0, h.t, jnp.inf)
-        mips = radiance_mips(lf) if mips is None and config.glossy_filter == "mip" else mips
+        maps = glossy_maps(lf, config.glossy_filter, include_emission=False) if maps is None else maps
         r = perfect_trace_radiance(
             lf,
             prim.origins,
@@ -327,7 +328,7 @@ def perfect_trace(
             filter=config.glossy_filter,
             lod_bias=config.glossy_lod_bias,
             margin=config.perfect_trace_margin,
-            mips=mips,
+            maps=maps,
         )
         gi = prim.glossy_idx
         L[gi] = np.asarray(r.radiance, np.float64)

@@ -46,9 +46,11 @@ from ._shade import shade_irradiance as shade_irradiance
 
 # --- glossy reads (issue 16: filtered by direction, perfect trace) ---
 # isort: split
+from ._glossy import DEFAULT_GLOSSY_FILTER as DEFAULT_GLOSSY_FILTER
 from ._glossy import GLOSSY_FILTERS as GLOSSY_FILTERS
 from ._glossy import GlossyResult as GlossyResult
 from ._glossy import PerfectTraceResult as PerfectTraceResult
+from ._glossy import glossy_maps as glossy_maps
 from ._glossy import glossy_trace as glossy_trace
 from ._glossy import perfect_trace_radiance as perfect_trace_radiance
 from ._glossy import radiance_mips as radiance_mips

@@ -59,6 +59,7 @@ from .._core import (
     ConfigError,
     LightFieldProbes,
     add_border,
+    next_pow2,
     oct_encode,
     safe_normalize,
     strip_border,
@@ -69,6 +70,9 @@ from .._core import (
 from ._trace import RAY_HIT, RAY_MISS, LightFieldTracer, trace_light_field
 
 GLOSSY_FILTERS = ("texel", "bilinear", "mip", "depth_aware")
+#: The filter of every glossy read unless one is chosen (the evaluation's too, ``EvalConfig.glossy_filter``):
+#: on Sponza 16×8×8 at 64² it lowered the glossy MSE from 1.95 to 1.81× a black image (module docstring).
+DEFAULT_GLOSSY_FILTER = "depth_aware"
 #: ``"depth_aware"``: a texel counts when its surfel meets the read direction within this fraction of the
 #: probe–hit distance (module docstring).
 DEPTH_TOLERANCE = 0.1
@@ -299,7 +303,7 @@ def _chunked(fn, arrays, chunk: int):
     """Run ``fn(*arrays)`` over fixed-size row chunks (the last padded by repeating its edge row) so
     every chunk reuses one compile; concatenate the (pytree) outputs."""
     n = arrays[0].shape[0]
-    size = min(chunk, max(64, 1 << (max(n, 1) - 1).bit_length()))
+    size = next_pow2(n, lo=64, hi=chunk)
     outs = []
     for s in range(0, n, size):
         k = min(size, n - s)
@@ -310,17 +314,29 @@ def _chunked(fn, arrays, chunk: int):
     return jax.tree.map(lambda *ys: jnp.concatenate(ys), *outs)
 
 
-def _levels(lf: LightFieldProbes, filt: str, include_emission: bool, mips) -> tuple[Array, ...]:
-    """The maps a read uses: the MIP chain for ``"mip"``, level 0 and its surfels for ``"depth_aware"``,
-    else level 0 alone (no chain built)."""
-    if filt == "depth_aware":
-        level0 = lf.radiance + lf.emission if include_emission else lf.radiance
+def glossy_maps(
+    lf: LightFieldProbes, filter: str = DEFAULT_GLOSSY_FILTER, *, include_emission: bool = True
+) -> tuple[Array, ...]:
+    """The maps a glossy read with ``filter`` uses, built once for many calls (pass them as ``maps`` to
+    :func:`glossy_trace` / :func:`perfect_trace_radiance`): the MIP chain for ``"mip"``
+    (:func:`radiance_mips`), level 0 and its surfels for ``"depth_aware"``, else level 0 alone.
+    ``include_emission`` as in :func:`glossy_trace` (radiance + emission, or reflected radiance only)."""
+    if filter not in GLOSSY_FILTERS:
+        raise ConfigError(f"glossy filter must be one of {GLOSSY_FILTERS}, got {filter!r}")
+    if filter == "mip":
+        return radiance_mips(lf, include_emission=include_emission)
+    level0 = lf.radiance + lf.emission if include_emission else lf.radiance
+    if filter == "depth_aware":
         return (level0, *_surfel_maps(lf, level0.shape[-2] - 2))
-    if filt == "mip":
-        return radiance_mips(lf, include_emission=include_emission) if mips is None else tuple(mips)
-    if mips is not None:
-        return (mips[0],)
-    return (lf.radiance + lf.emission,) if include_emission else (lf.radiance,)
+    return (level0,)
+
+
+def _levels(lf: LightFieldProbes, filt: str, include_emission: bool, maps) -> tuple[Array, ...]:
+    """``maps`` if given (level 0 alone of them for the texel and bilinear reads), else
+    :func:`glossy_maps`."""
+    if maps is None:
+        return glossy_maps(lf, filt, include_emission=include_emission)
+    return tuple(maps) if filt in ("mip", "depth_aware") else (maps[0],)
 
 
 def _check(filt: str, o, d, dt, cone):
@@ -342,11 +358,11 @@ def glossy_trace(
     directions: Float[Array, "n 3"],
     *,
     cone: Float[Array, " n"] | float | None = None,
-    filter: str = "bilinear",
+    filter: str = DEFAULT_GLOSSY_FILTER,
     lod_bias: float = 0.0,
     include_emission: bool = True,
     sky: Float[Array, "3"] | None = None,
-    mips: tuple[Array, ...] | None = None,
+    maps: tuple[Array, ...] | None = None,
     chunk: int = _CHUNK,
 ) -> GlossyResult:
     """Radiance arriving at ``origins`` from ``directions``, read from the probes (module docstring).
@@ -356,13 +372,13 @@ def glossy_trace(
         lf: the baked probes whose maps are read.
         origins, directions: rays, world frame (offset secondary rays off their surface yourself).
         cone: per-ray footprint solid angle at the origin, sr (``"mip"`` only; ``None``: level 0).
-        filter: ``"texel"`` | ``"bilinear"`` | ``"mip"``.
+        filter: one of :data:`GLOSSY_FILTERS` (module docstring; default :data:`DEFAULT_GLOSSY_FILTER`).
         lod_bias: added to the MIP level (``"mip"``; Colbert & Křivánek use +1 for smoother results).
         include_emission: add the emission baked at the hit, and the sky on a miss (what the ray would
             see); ``False`` gives reflected radiance only (the glossy *indirect* input).
         sky: radiance of escaping rays (default zero; pass ``scene.sky_radiance``). No sun disk.
-        mips: :func:`radiance_mips` of ``lf`` with the same ``include_emission`` (built when ``None``;
-            pass it to build once for many calls).
+        maps: :func:`glossy_maps` of ``lf`` with the same filter and ``include_emission`` (built when
+            ``None``; pass them to build once for many calls).
         chunk: rays per jitted chunk.
 
     Returns:
@@ -375,7 +391,7 @@ def glossy_trace(
         return GlossyResult(
             jnp.zeros((0, 3), dt), jnp.zeros((0,), jnp.int32), z, jnp.zeros((0,), jnp.int32), z
         )
-    levels = _levels(lf, filter, include_emission, mips)
+    levels = _levels(lf, filter, include_emission, maps)
     s = jnp.zeros(3, dt) if sky is None else jnp.asarray(sky, dt)
     b = jnp.asarray(lod_bias, dt)
     fn = lambda o_, d_, c_: _glossy_chunk(tracer, levels, o_, d_, c_, s, b, filter, include_emission)
@@ -402,14 +418,14 @@ def perfect_trace_radiance(
     hit_normals: Float[Array, "n 3"],
     *,
     cone: Float[Array, " n"] | float | None = None,
-    filter: str = "bilinear",
+    filter: str = DEFAULT_GLOSSY_FILTER,
     lod_bias: float = 0.0,
     include_emission: bool = False,
     sky: Float[Array, "3"] | None = None,
     margin: float = 0.05,
     candidates: int = 8,
     choose: str = "nearest",
-    mips: tuple[Array, ...] | None = None,
+    maps: tuple[Array, ...] | None = None,
     chunk: int = 1 << 12,
 ) -> PerfectTraceResult:
     """Radiance read from the probes at each ray's *exact* hit (module docstring): the representation
@@ -420,7 +436,7 @@ def perfect_trace_radiance(
         origins, directions: rays, world frame.
         t_hit: exact hit distance (``inf`` on a miss), e.g. ``caster.closest_hit(o, d).t``.
         hit_normals: geometric normal at the hit (either side; it is turned toward the ray's origin).
-        cone, filter, lod_bias, include_emission, sky, mips: as in :func:`glossy_trace`.
+        cone, filter, lod_bias, include_emission, sky, maps: as in :func:`glossy_trace`.
         margin: a probe sees the hit if its surfel toward it is ≥ (1 − margin) × the probe–hit distance
             (5% by default: the surfel is a plane through one texel centre, not the exact surface).
         candidates: how many of the nearest usable probes are tested.
@@ -447,7 +463,7 @@ def perfect_trace_radiance(
     if o.shape[0] == 0:
         z = jnp.zeros((0,), dt)
         return PerfectTraceResult(jnp.zeros((0, 3), dt), jnp.zeros((0,), jnp.int32), jnp.zeros((0,), bool), z)
-    levels = _levels(lf, filter, include_emission, mips)
+    levels = _levels(lf, filter, include_emission, maps)
     s = jnp.zeros(3, dt) if sky is None else jnp.asarray(sky, dt)
     k = int(min(max(candidates, 1), lf.pos_world.shape[0]))
     b, m = jnp.asarray(lod_bias, dt), jnp.asarray(margin, dt)
@@ -458,9 +474,11 @@ def perfect_trace_radiance(
 
 
 __all__ = [
+    "DEFAULT_GLOSSY_FILTER",
     "GLOSSY_FILTERS",
     "GlossyResult",
     "PerfectTraceResult",
+    "glossy_maps",
     "glossy_radiance",
     "glossy_trace",
     "perfect_trace_radiance",
