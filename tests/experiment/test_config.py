@@ -65,6 +65,10 @@ BAD = [
     ({"placer": {"method": "grid", "options": {"spacing": 3}}}, "placer.options.spacing"),
     ({"placer": {"method": "skeleton", "options": {"jitter": 0.5}}}, "placer.options.jitter"),
     ({"bake": {"radiance_res": 12}}, "bake.radiance_res: must be a power of two"),
+    ({"bake": {"geometry_res": 48}}, "bake.geometry_res: must be a power of two >= 2, got 48"),
+    ({"bake": {"geometry_res": 1}}, "bake.geometry_res: must be a power of two >= 2, got 1"),
+    ({"bake": {"backend": "embree"}}, "bake.backend: must be one of ('jax', 'mitsuba'), got 'embree'"),
+    ({"eval": {"backend": "cuda"}}, "eval.backend: must be one of ('jax', 'mitsuba'), got 'cuda'"),
     ({"bake": {"spp": 0}}, "bake.spp"),
     ({"tracer": {"max_depth": 2}}, "tracer.max_depth"),
     ({"eval": {"shading": "phong"}}, "eval.shading"),
@@ -158,3 +162,34 @@ def test_translation_moves_the_scene_relative_to_the_lattice_methods_grid():
     assert _placer_options(given, t)["shift"] == pytest.approx((np.array([1.0, 0.0, 0.0]) - t).tolist())
     assert _placer_options(given, np.zeros(3)) == {"shift": [1.0, 0.0, 0.0]}
     assert _placer_options(to_config(compose(["placer=skeleton"])), t) == {}
+
+
+def test_backend_and_geometry_res_defaults_and_overrides():
+    cfg = to_config(compose([]))
+    assert (cfg.bake.backend, cfg.bake.geometry_res, cfg.eval.backend) == ("jax", None, "jax")
+    cfg = to_config(compose(["bake.backend=mitsuba", "bake.geometry_res=64", "eval.backend=mitsuba"]))
+    assert (cfg.bake.backend, cfg.bake.geometry_res, cfg.eval.backend) == ("mitsuba", 64, "mitsuba")
+
+
+@pytest.mark.parametrize(
+    ("override", "key"),
+    [({"bake": {"backend": "mitsuba"}}, "bake.backend"), ({"eval": {"backend": "mitsuba"}}, "eval.backend")],
+)
+def test_unloadable_mitsuba_is_refused_before_any_work(override, key, tmp_path, monkeypatch):
+    """Without Mitsuba's module or LLVM variant (load_mitsuba's ImportError), run() refuses naming the key
+    before placing; a disabled stage's backend is not checked."""
+    import probeplace.render._mitsuba_backend as mb
+
+    def missing():
+        raise ImportError("backend='mitsuba' needs Mitsuba 3 (pip install mitsuba): no module")
+
+    monkeypatch.setattr(mb, "load_mitsuba", missing)
+    with pytest.raises(ConfigError, match=rf"^{re.escape(key)}: backend='mitsuba' needs Mitsuba 3"):
+        run({**override, "results_dir": str(tmp_path)})
+    assert not [p for p in tmp_path.rglob("*") if p.is_file()]
+    if key == "bake.backend":  # placements only: the bake's backend does not matter
+        from probeplace.experiment._run import _check_backends
+
+        _check_backends(
+            to_config({"bake": {"enabled": False, "backend": "mitsuba"}, "eval": {"enabled": False}})
+        )

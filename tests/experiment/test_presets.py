@@ -58,7 +58,14 @@ def _check_run(cfg, res):
     probes, _ = load_probe_set(d / "probes.json")
     assert probes.n_active == m["n_probes"] <= 2
     assert m["timings"]["place_s"] > 0
+    for stage in ("place", "bake", "eval"):
+        _check_split(m["timings"], stage, present=stage == "place" or getattr(cfg, stage).enabled)
     if cfg.bake.enabled:
+        assert m["timings"]["place_bake_run_s"] == pytest.approx(
+            m["timings"]["place_run_s"] + m["timings"]["bake_run_s"], rel=1e-12
+        )
+        assert m["bake_settings"]["backend"] == cfg.bake.backend
+        assert m["bake_settings"]["geometry_res"] == (cfg.bake.geometry_res or cfg.bake.radiance_res)
         assert "probes_baked.npz" in names
         with np.load(d / "probes_baked.npz") as z:
             # padded with inactive rows to a power-of-two capacity; the active rows are the placed probes
@@ -70,8 +77,21 @@ def _check_run(cfg, res):
     if cfg.eval.enabled:
         ev = m["eval"]
         assert ev["width"] == 8 and np.isfinite(ev["mse_glossy_indirect"])
+        assert ev["backend"] == cfg.eval.backend
         assert (d / "eval" / "images.exr").is_file()
     return m
+
+
+def _check_split(t: dict, stage: str, *, present: bool) -> None:
+    """``<stage>_compile_s + <stage>_run_s == <stage>_s`` (run is wall − compile, so only rounding
+    differs), both parts non-negative; absent for a stage that did not run."""
+    keys = [f"{stage}_s", f"{stage}_compile_s", f"{stage}_run_s"]
+    if not present:
+        assert not set(keys) & set(t)
+        return
+    wall, comp, run_ = (t[k] for k in keys)
+    assert comp >= 0 and run_ >= 0 and comp <= wall
+    assert comp + run_ == pytest.approx(wall, rel=1e-9, abs=1e-9)
 
 
 FAST = [p for p in PRESETS if p != "sponza_comparison"]
@@ -106,7 +126,10 @@ def test_preset_runs_tiny(preset, evaluate, tmp_path):
     assert (report.parent / "top_views" / f"{res.out_dir.name}.png").is_file()
 
 
-@pytest.mark.parametrize("evaluate", [False, pytest.param(True, marks=pytest.mark.slow)], ids=["", "eval"])
+# ~60 s even without evaluation (Sponza's SDF and caster): slow; Sponza stays in the default run through
+# the tracer identity test (tests/probes/test_wavefront.py) and the bake's inside test.
+@pytest.mark.slow
+@pytest.mark.parametrize("evaluate", [False, True], ids=["", "eval"])
 def test_sponza_preset_runs_tiny(evaluate, tmp_path, monkeypatch):
     """Sponza from the shared scenes (skipped with the reason where they are absent); the default run
     without the evaluation, like the other presets."""
@@ -118,3 +141,21 @@ def test_sponza_preset_runs_tiny(evaluate, tmp_path, monkeypatch):
     cfg, res = _tiny_run("sponza_comparison", tmp_path, [] if evaluate else ["eval=none"])
     m = _check_run(cfg, res)
     assert cfg.scene.name == "crytek_sponza" and m["n_probes"] >= 1
+
+
+def test_mitsuba_bake_runs_tiny(tmp_path):
+    """bake.backend=mitsuba with a finer geometry map: the backend and geometry resolution reach the bake
+    and metrics.json, and Dr.Jit's compile time is split off like JAX's."""
+    try:
+        from probeplace.render._mitsuba_backend import load_mitsuba
+
+        load_mitsuba()
+    except ImportError as e:
+        pytest.skip(f"Mitsuba's LLVM variant cannot load here: {e}")
+    extra = ["eval=none", "bake.backend=mitsuba", "bake.geometry_res=8"]
+    cfg, res = _tiny_run("cornell_comparison", tmp_path, extra)
+    assert (cfg.bake.backend, cfg.bake.geometry_res, cfg.bake.radiance_res) == ("mitsuba", 8, 4)
+    m = _check_run(cfg, res)
+    assert m["bake_settings"]["backend"] == "mitsuba" and m["bake_settings"]["geometry_res"] == 8
+    with np.load(res.out_dir / "probes_baked.npz") as z:
+        assert z["distance"].shape[-1] == 8 + 2 and z["radiance"].shape[-2] == 4 + 2  # one-texel border

@@ -19,7 +19,31 @@ A = {"grid": 8.0, "skeleton": 4.0, "vardis": 2.0}
 COUNTS = {"grid": [4, 8, 16], "skeleton": [2, 4, 8], "vardis": [2, 4]}
 
 
-def _fake_run(exp, label, n, *, done=True, exr=False, seed=0, translate=(0.0, 0.0, 0.0), rotate=0.0, cov=1.0):
+def _timings(n: int, compile_s: float | None) -> dict:
+    """Placement 1 s and bake 0.5 s per probe of run time; ``compile_s`` of bake compilation on top, or
+    ``None``: a metrics.json from before the compile/run split (wall times only)."""
+    if compile_s is None:
+        return {"place_s": 1.0 * n, "bake_s": 0.5 * n, "place_bake_s": 1.5 * n}
+    return {
+        **{"place_s": 1.0 * n, "place_compile_s": 0.0, "place_run_s": 1.0 * n},
+        **{"bake_s": 0.5 * n + compile_s, "bake_compile_s": compile_s, "bake_run_s": 0.5 * n},
+        **{"place_bake_s": 1.5 * n + compile_s, "place_bake_run_s": 1.5 * n},
+    }
+
+
+def _fake_run(
+    exp,
+    label,
+    n,
+    *,
+    done=True,
+    exr=False,
+    seed=0,
+    translate=(0.0, 0.0, 0.0),
+    rotate=0.0,
+    cov=1.0,
+    compile_s: float | None = None,
+):
     import jax.numpy as jnp
 
     from probeplace.render._image_io import save_exr
@@ -48,7 +72,7 @@ def _fake_run(exp, label, n, *, done=True, exr=False, seed=0, translate=(0.0, 0.
         "rotate_deg": rotate,
         "n_probes": n,
         "coverage": cov,
-        "timings": {"place_s": 1.0 * n, "bake_s": 0.5 * n, "place_bake_s": 1.5 * n},
+        "timings": _timings(n, compile_s),
         "memory": {"bytes_total": 1000 * n},
         "failures": [] if cov == 1.0 else ["coverage<100%"],
         "eval": {
@@ -118,6 +142,38 @@ def test_report_from_saved_files(tmp_path):
     # within the grid's 12 s: skeleton's best is its 8-probe run, vardis's its 4-probe run
     assert re.search(rf"\| skeleton \| {A['skeleton'] / 8:.3g} \| 8 \|", eq_time)
     assert re.search(rf"\| vardis \| {A['vardis'] / 4:.3g} \| 4 \|", eq_time)
+    # metrics.json files from before the compile/run split load, and the report says their times are
+    # wall times
+    n = sum(map(len, COUNTS.values()))
+    assert f"_{n} of {n} runs predate the compile/run split" in text
+    assert f"_{n} of {n} runs predate the compile/run split" in eq_time
+
+
+def test_report_compares_run_time_without_compilation(tmp_path):
+    """A run that paid the sweep's compilation (50 s) is compared by its run time: at equal time the
+    skeleton's best within the grid's 12 s is still its 8-probe run (62 s of wall time); an older run
+    without the split falls back to its wall time, and the report says so."""
+    exp = tmp_path / "split"
+    for label, counts in COUNTS.items():
+        for n in counts:
+            old = (label, n) == ("vardis", 2)
+            _fake_run(
+                exp, label, n, compile_s=None if old else 50.0 if (label, n) == ("skeleton", 8) else 0.0
+            )
+    text = make_report(exp).read_text()
+    eq_time = text.split("equal time")[1].split("##")[0]
+    assert eq_time.startswith(" (placement + bake run time ≤ 12.0 s, the grid's time)")
+    assert "without JIT compilation (`place_bake_run_s`)" in eq_time
+    assert re.search(rf"\| skeleton \| {A['skeleton'] / 8:.3g} \| 8 \|", eq_time)
+    assert "_1 of 8 runs predate the compile/run split" in eq_time
+    # all-runs table: place and bake run times, then the compile time ("—" for the old run)
+    row = next(ln for ln in text.splitlines() if ln.startswith("| cornell_box__skeleton__b8__"))
+    assert row.split(" | ")[3:6] == ["8.0", "4.0", "50.0"]
+    row = next(ln for ln in text.splitlines() if ln.startswith("| cornell_box__vardis__b2__"))
+    assert row.split(" | ")[3:6] == ["2.0", "1.0", "—"]
+    eq_quality = text.split("equal quality")[1].split("##")[0]
+    assert "run s (no compilation)" in eq_quality
+    assert re.search(r"\| vardis \| 2 \| 3\.0 \|", eq_quality)  # the old run: its wall time
 
 
 def test_report_refuses_an_empty_experiment(tmp_path):

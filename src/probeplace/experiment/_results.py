@@ -15,6 +15,8 @@ import subprocess
 from collections.abc import Iterator
 from pathlib import Path
 
+from .._core import write_text_atomic
+
 DONE = "DONE"
 
 
@@ -56,10 +58,8 @@ def commit(partial: Path, final: Path) -> Path:
 
 
 def write_json(path: Path, data) -> None:
-    """JSON with a temporary file and ``os.replace`` (never a half-written file)."""
-    tmp = path.with_name(path.name + ".tmp")
-    tmp.write_text(json.dumps(data, indent=2, default=_json_default))
-    os.replace(tmp, path)
+    """``data`` as JSON (indent 2, NumPy values and paths converted), written atomically."""
+    write_text_atomic(path, json.dumps(data, indent=2, default=_json_default))
 
 
 def _json_default(o):

@@ -3,13 +3,23 @@
 Stages: load the scene (optionally offset/rotated) → place (timed) → bake (timed, progress bar) →
 evaluate (when ``probeplace.evaluate`` provides it) → export (optional) → write ``config.yaml``,
 ``metrics.json``, ``env.json``, the probe set, the baked probes, images and ``DONE``.
+
+**Timings** (``metrics.json`` ``timings``, seconds). Every timed stage ``X`` of ``place``, ``bake`` and
+``eval`` has ``X_s`` (wall time of the stage), ``X_compile_s`` (the part spent compiling, see
+:func:`_timed`) and ``X_run_s = X_s − X_compile_s``; ``place_bake_s`` is ``place_s + bake_s`` and
+``place_bake_run_s`` is ``place_run_s + bake_run_s``. All runs of a sweep in one process share compiled
+code, so the first run pays nearly all the compilation (issue 17: a grid's 61.7 s bake against 7.6 s for
+the next method in the same sweep); the ``_run_s`` figures are what the report compares methods by.
+``scene_s`` is the scene load (no split).
 """
 
 from __future__ import annotations
 
+import contextlib
 import dataclasses
 import logging
 import time
+from collections.abc import Iterator
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -73,12 +83,13 @@ def run_dir(cfg: ExperimentConfig) -> Path:
 def load_experiment_scene(scene_cfg, *, with_translation: bool = False) -> Any:
     """The configured scene, moved by ``translate_frac`` × extent and rotated about +Y through its centre;
     with ``with_translation``, also the translation (scene units) as a float64 3-vector."""
+    from .._core import scene_box
     from ..scene import axis_angle_rotation, load_scene, transform_scene
 
     scene = load_scene(scene_cfg.name)
     t = np.asarray(scene_cfg.translate_frac, np.float64)
     deg = float(scene_cfg.rotate_deg)
-    lo, hi = (np.asarray(b, np.float64) for b in np.asarray(scene.bounds))
+    lo, hi = scene_box(scene)
     if not t.any() and deg == 0.0:
         return (scene, np.zeros(3)) if with_translation else scene
     centre = 0.5 * (lo + hi)
@@ -101,6 +112,101 @@ def _placer_options(cfg: ExperimentConfig, translation: np.ndarray) -> dict:
         base = np.broadcast_to(np.asarray(opts.get("shift", (0.0, 0.0, 0.0)), np.float64), (3,))
         opts["shift"] = (base - translation).tolist()
     return opts
+
+
+# JAX's compile phases, recorded with their start and end through jax.monitoring (jax/_src/dispatch.py:
+# JAXPR_TRACE_EVENT, JAXPR_TO_MLIR_MODULE_EVENT, BACKEND_COMPILE_EVENT; the backend phase includes a
+# persistent-cache lookup).
+_JAX_COMPILE_EVENTS = frozenset(
+    (
+        "/jax/core/compile/jaxpr_trace_duration",
+        "/jax/core/compile/jaxpr_to_mlir_module_duration",
+        "/jax/core/compile/backend_compile_duration",
+    )
+)
+
+
+def _covered_s(spans: list[tuple[float, float]], lo: float, hi: float) -> float:
+    """Seconds of [lo, hi] covered by the union of ``spans`` (a nested jit's trace lies inside its
+    caller's: counted once)."""
+    total, end = 0.0, lo
+    for s, e in sorted(spans):
+        s, e = max(s, end), min(e, hi)
+        if e > s:
+            total += e - s
+            end = e
+    return total
+
+
+@contextlib.contextmanager
+def _timed(timings: dict, stage: str, *, drjit: bool = False) -> Iterator[None]:
+    """Time the ``with`` block into ``timings``: ``<stage>_s`` (wall), ``<stage>_compile_s`` and
+    ``<stage>_run_s`` (wall minus compile; both ≥ 0, summing to the wall time). The block must wait for
+    its results (``jax.block_until_ready``), as the wall time always did.
+
+    Compile time is *measured*, not inferred from a first-vs-later batch difference: JAX reports each
+    trace, lowering and XLA compilation with its start and end (``jax.monitoring`` time spans), and the
+    union of those spans inside the block is the compile time — every jitted function of the stage
+    (caster, path tracer, filters, the inside test), a single-op dispatch of new shapes included, each
+    counted once however nested. An executable already in memory (same shapes as an earlier run of the
+    process) costs nothing here; a persistent-cache hit still counts its tracing, lowering and lookup.
+    With ``drjit`` (a Mitsuba backend in the block) Dr.Jit's kernel history adds the code generation and
+    LLVM compilation of the kernels it had not cached (``cache_hit == 0``); Dr.Jit re-traces the Python
+    of its kernels on every call, so that tracing and the cache lookup are run time, as they would be in
+    any later run.
+    """
+    import jax
+
+    spans: list[tuple[float, float]] = []
+
+    def listen(event: str, start: float, end: float, **_) -> None:
+        if event in _JAX_COMPILE_EVENTS:
+            spans.append((start, end))
+
+    dr, had_history = None, False
+    if drjit:
+        import drjit as dr
+
+        had_history = dr.flag(dr.JitFlag.KernelHistory)
+        dr.set_flag(dr.JitFlag.KernelHistory, True)
+        dr.kernel_history()  # reading it clears it: only this block's kernels are counted
+    jax.monitoring.register_event_time_span_listener(listen)
+    lo, t0 = time.time(), time.perf_counter()  # jax.monitoring stamps spans with time.time()
+    try:
+        yield
+    finally:
+        wall, hi = time.perf_counter() - t0, time.time()
+        jax.monitoring.unregister_event_time_span_listener(listen)
+        compile_s = _covered_s(spans, lo, hi)
+        if dr is not None:
+            kernels = dr.kernel_history()
+            dr.set_flag(dr.JitFlag.KernelHistory, had_history)
+            ms = sum(
+                k.get("codegen_time", 0.0) + k.get("backend_time", 0.0)
+                for k in kernels
+                if k.get("cache_hit") == 0
+            )
+            compile_s += 1e-3 * ms  # Dr.Jit reports milliseconds
+        compile_s = min(compile_s, wall)  # two clocks: never more than the wall time
+    timings[f"{stage}_s"] = wall
+    timings[f"{stage}_compile_s"] = compile_s
+    timings[f"{stage}_run_s"] = wall - compile_s
+
+
+def _check_backends(cfg: ExperimentConfig) -> None:
+    """Refuse ``mitsuba`` backends whose Mitsuba module or LLVM variant cannot load, before any work
+    (``probeplace evaluate --backend mitsuba`` checks the same way)."""
+    for key, used, backend in (
+        ("bake.backend", cfg.bake.enabled, cfg.bake.backend),
+        ("eval.backend", cfg.eval.enabled, cfg.eval.backend),
+    ):
+        if used and backend == "mitsuba":
+            from ..render._mitsuba_backend import load_mitsuba
+
+            try:
+                load_mitsuba()
+            except ImportError as e:
+                raise ConfigError(f"{key}: {e}") from None
 
 
 def _tree_nbytes(tree) -> int:
@@ -130,6 +236,7 @@ def _evaluate(scene, lf, cfg: ExperimentConfig, caster, key, out: Path) -> dict:
         "shading": cfg.eval.shading,
         "timing_repeats": cfg.eval.timing_repeats,
         "progress": cfg.progress,
+        "backend": cfg.eval.backend,
     }
     names = (
         {f.name for f in dataclasses.fields(eval_config)} if dataclasses.is_dataclass(eval_config) else set()
@@ -139,7 +246,9 @@ def _evaluate(scene, lf, cfg: ExperimentConfig, caster, key, out: Path) -> dict:
     config = eval_config(**{k: v for k, v in wanted.items() if k in names})
     result = evaluate(scene, lf, view=cfg.eval.view, config=config, caster=caster, key=key)
     write(result, out / "eval")
-    return dict(result.metrics)
+    metrics = dict(result.metrics)
+    metrics.setdefault("backend", getattr(config, "backend", "jax"))  # who rendered the reference
+    return metrics
 
 
 def run(cfg: Any, *, force: bool = False) -> RunResult:
@@ -150,10 +259,12 @@ def run(cfg: Any, *, force: bool = False) -> RunResult:
         force: redo a finished run.
 
     Returns:
-        :class:`RunResult` with the run folder and its metrics.
+        :class:`RunResult` with the run folder and its metrics (``timings``: wall, compile and run seconds
+        per stage, module docstring).
 
     Raises:
-        ConfigError: invalid or unknown configuration keys (the message names the key).
+        ConfigError: invalid or unknown configuration keys (the message names the key), or a
+            ``mitsuba`` backend that cannot load (before any work).
         EvaluationUnavailable: ``eval.enabled`` without ``probeplace.evaluate``.
     """
     cfg = to_config(cfg)
@@ -172,6 +283,7 @@ def run(cfg: Any, *, force: bool = False) -> RunResult:
                 "evaluation not available: probeplace.evaluate.evaluate is not built yet; "
                 "run with eval.enabled=false"
             ) from None
+    _check_backends(cfg)
 
     partial = _results.begin(final)
     try:
@@ -228,19 +340,19 @@ def _execute(cfg: ExperimentConfig, partial: Path, final: Path) -> dict:
     bar.update()
 
     bar.set_postfix_str("place")
-    t0 = time.perf_counter()
-    probes, meta = place(
-        scene,
-        method=cfg.placer.method,
-        budget=cfg.placer.budget,
-        refiner=None if cfg.refiner.name == "none" else cfg.refiner.name,
-        objective=cfg.placer.objective,
-        seed=cfg.seed,
-        target=cfg.placer.target,
-        n_opt_samples=cfg.placer.n_opt_samples,
-        **({"options": opts} if (opts := _placer_options(cfg, translation)) else {}),
-    )
-    timings["place_s"] = time.perf_counter() - t0
+    with _timed(timings, "place"):
+        probes, meta = place(
+            scene,
+            method=cfg.placer.method,
+            budget=cfg.placer.budget,
+            refiner=None if cfg.refiner.name == "none" else cfg.refiner.name,
+            objective=cfg.placer.objective,
+            seed=cfg.seed,
+            target=cfg.placer.target,
+            n_opt_samples=cfg.placer.n_opt_samples,
+            **({"options": opts} if (opts := _placer_options(cfg, translation)) else {}),
+        )
+        jax.block_until_ready(probes)
     bar.update()
     active = np.asarray(probes.active)
     pos = np.asarray(probes.pos_world)[active]
@@ -262,37 +374,46 @@ def _execute(cfg: ExperimentConfig, partial: Path, final: Path) -> dict:
 
         bar.set_postfix_str("bake")
         caster = default_caster(scene)
-        t0 = time.perf_counter()
-        lf = bake_probes(
-            scene,
-            _padded(probes) if cfg.bake.pad_pow2 else probes,
-            caster=caster,
-            # one depth rule for bake, reference and evaluation: a texel replaces the rest of a camera path
-            radiance_fn=path_traced_radiance(
-                scene, spp=cfg.bake.spp, max_depth=bake_depth_for(cfg.tracer.max_depth), caster=caster
-            ),
-            key=k_bake,
-            config=BakeConfig(
-                radiance_res=cfg.bake.radiance_res,
-                n_sub=cfg.bake.n_sub,
-                probes_per_batch=cfg.bake.probes_per_batch,
-                progress=cfg.progress,
-            ),
-        )
-        jax.block_until_ready(lf)
-        timings["bake_s"] = time.perf_counter() - t0
+        mitsuba = cfg.bake.backend == "mitsuba"
+        with _timed(timings, "bake", drjit=mitsuba):
+            lf = bake_probes(
+                scene,
+                _padded(probes) if cfg.bake.pad_pow2 else probes,
+                caster=caster,  # texel-centre geometry rays and the inside test, whatever the backend
+                # one depth rule for bake, reference and evaluation: a texel replaces the rest of a camera
+                # path
+                radiance_fn=path_traced_radiance(
+                    scene,
+                    spp=cfg.bake.spp,
+                    max_depth=bake_depth_for(cfg.tracer.max_depth),
+                    caster=None if mitsuba else caster,  # Mitsuba casts its own rays (Embree)
+                    backend=cfg.bake.backend,
+                ),
+                key=k_bake,
+                config=BakeConfig(
+                    radiance_res=cfg.bake.radiance_res,
+                    geometry_res=cfg.bake.geometry_res,
+                    n_sub=cfg.bake.n_sub,
+                    probes_per_batch=cfg.bake.probes_per_batch,
+                    progress=cfg.progress,
+                ),
+            )
+            jax.block_until_ready(lf)
         bar.update()
         save_probes(partial / "probes_baked.npz", lf)
         metrics["inside_bake"] = int((np.asarray(lf.inside) & np.asarray(lf.active)).sum())
-        metrics["bake_settings"] = lf.bake.to_dict()
+        # the settings stored with the probes (backend included), plus the geometry maps' resolution
+        # (interior: the stored maps carry a one-texel border)
+        metrics["bake_settings"] = {**lf.bake.to_dict(), "geometry_res": int(lf.distance.shape[-1]) - 2}
         # as stored, for the real probes only (padding rows are not part of the method's cost)
         per_probe = _tree_nbytes(lf) / int(lf.pos_world.shape[0])
         metrics["memory"] = {"bytes_per_probe": per_probe, "bytes_total": per_probe * metrics["n_probes"]}
         if cfg.eval.enabled:
             bar.set_postfix_str("eval")
-            t0 = time.perf_counter()
-            metrics["eval"] = _evaluate(scene, lf, cfg, caster, k_eval, partial)
-            timings["eval_s"] = time.perf_counter() - t0
+            # eval_compile_s: the whole evaluation's compilation; the shading's own is the evaluation's
+            # shading_compile_s (first run − median of repeats), its run time shading_s_per_frame
+            with _timed(timings, "eval", drjit=cfg.eval.backend == "mitsuba"):
+                metrics["eval"] = _evaluate(scene, lf, cfg, caster, k_eval, partial)
             bar.update()
         if cfg.export.formats:
             from ..export import export_probes, read_probes
@@ -310,6 +431,7 @@ def _execute(cfg: ExperimentConfig, partial: Path, final: Path) -> dict:
             bar.update()
     bar.close()
     timings["place_bake_s"] = timings["place_s"] + timings.get("bake_s", 0.0)
+    timings["place_bake_run_s"] = timings["place_run_s"] + timings.get("bake_run_s", 0.0)
     metrics["failures"] = failures(metrics)
     _results.write_json(partial / "metrics.json", metrics)
     return metrics
@@ -335,16 +457,11 @@ def _check_same_config(cfg: ExperimentConfig, final: Path) -> None:
 
 def _inside_sdf(scene, pos: np.ndarray) -> int:
     """Probes with a negative signed distance (inside geometry, the SDF's sign contract; docs/sdf.md)."""
-    import jax
-    import jax.numpy as jnp
-
-    from ..geometry import build_sdf, sdf_value
+    from ..geometry import build_sdf, lookup_sdf
 
     if not len(pos):
         return 0
-    grid = build_sdf(scene)
-    d = jax.vmap(sdf_value, in_axes=(None, 0))(grid, jnp.asarray(pos, jnp.float32))
-    return int((np.asarray(d) < 0).sum())
+    return int((lookup_sdf(build_sdf(scene), pos) < 0).sum())
 
 
 def _padded(probes):
@@ -352,10 +469,10 @@ def _padded(probes):
     a power of two from 8 to 64, then a multiple of 64."""
     import jax.numpy as jnp
 
-    from .._core import ProbeSet
+    from .._core import ProbeSet, next_pow2
 
     n = probes.capacity
-    cap = max(8, 1 << max(n - 1, 0).bit_length()) if n <= 64 else -(-n // 64) * 64
+    cap = next_pow2(n, lo=8) if n <= 64 else -(-n // 64) * 64
     pad = cap - probes.capacity
     if pad <= 0:
         return probes

@@ -80,6 +80,14 @@ class BakeConfig:
             a multiple of 64), so
             the runs of a sweep share compiled bake / shading code; inactive probes are masked out, the
             results do not change.
+        geometry_res: interior resolution of the geometry maps (distance, normal, back-face, distance
+            MIPs; a power of two >= 2); ``None`` (default): ``radiance_res``
+            (``probes.BakeConfig.geometry_res``: one exact ray per texel, no path tracing).
+        backend: who path-traces the bake's radiance: ``"jax"`` (default; the GPU and differentiable
+            path) or ``"mitsuba"`` (the same estimator compiled by Mitsuba 3's ``llvm_ad_rgb`` variant,
+            several times faster on a CPU; ``probes.path_traced_radiance(backend=...)``). The texel-centre
+            geometry rays and the inside test use the exact caster either way. A run refuses
+            ``"mitsuba"`` before placing when Mitsuba or its LLVM variant cannot load.
 
     The bake's path depth is not a setting of its own: it is ``tracer.max_depth − 1``
     (``probes.bake_depth_for``), so the probes always match the reference they are compared with.
@@ -91,6 +99,8 @@ class BakeConfig:
     n_sub: int = 2
     probes_per_batch: int = 4
     pad_pow2: bool = True
+    geometry_res: int | None = None
+    backend: str = "jax"
 
 
 @dataclass
@@ -121,6 +131,10 @@ class EvalConfig:
         glossy_ref_spp: reference paths per GGX direction (>= 2, for its variance).
         shading: diffuse shading from the probes: ``lightfield``, ``irradiance`` or ``sh``.
         timing_repeats: shading repeats timed (median) after the compile run.
+        backend: who path-traces the reference render and the CRN glossy reference: ``"jax"`` (default)
+            or ``"mitsuba"`` (``evaluate.EvalConfig.backend``; refused before placing when Mitsuba or its
+            LLVM variant cannot load). The tracer's settings (``tracer.spp``, ``tracer.max_depth``) hold
+            for either backend.
     """
 
     enabled: bool = True
@@ -131,6 +145,7 @@ class EvalConfig:
     glossy_ref_spp: int = 4
     shading: str = "lightfield"
     timing_repeats: int = 3
+    backend: str = "jax"
 
 
 @dataclass
@@ -174,6 +189,18 @@ def _fail(key: str, what: str, got) -> None:
 def _pos_int(key: str, v) -> None:
     if isinstance(v, bool) or not isinstance(v, int) or v < 1:
         _fail(key, "must be a positive integer", v)
+
+
+def _pow2(key: str, v) -> None:
+    if isinstance(v, bool) or not isinstance(v, int) or v < 2 or v & (v - 1):
+        _fail(key, "must be a power of two >= 2", v)
+
+
+def _backend(key: str, v) -> None:
+    from ..render import BACKENDS
+
+    if v not in BACKENDS:
+        _fail(key, f"must be one of {BACKENDS}", v)
 
 
 def _name(key: str, v) -> None:
@@ -221,11 +248,12 @@ def validate(cfg: ExperimentConfig) -> ExperimentConfig:
     if cfg.refiner.name != "none" and cfg.refiner.name not in REFINERS:
         _fail("refiner.name", f"must be 'none' or one of {REFINERS}", cfg.refiner.name)
     b = cfg.bake
-    r = b.radiance_res
-    if isinstance(r, bool) or not isinstance(r, int) or r < 2 or r & (r - 1):
-        _fail("bake.radiance_res", "must be a power of two >= 2", r)
+    _pow2("bake.radiance_res", b.radiance_res)
+    if b.geometry_res is not None:
+        _pow2("bake.geometry_res", b.geometry_res)
     for k in ("spp", "n_sub", "probes_per_batch"):
         _pos_int(f"bake.{k}", getattr(b, k))
+    _backend("bake.backend", b.backend)
     _pos_int("tracer.spp", cfg.tracer.spp)
     if (
         isinstance(cfg.tracer.max_depth, bool)
@@ -247,6 +275,7 @@ def validate(cfg: ExperimentConfig) -> ExperimentConfig:
         _fail("eval.glossy_ref_spp", "must be an integer >= 2", cfg.eval.glossy_ref_spp)
     if cfg.eval.shading not in SHADINGS:
         _fail("eval.shading", f"must be one of {SHADINGS}", cfg.eval.shading)
+    _backend("eval.backend", cfg.eval.backend)
     if cfg.eval.enabled and not cfg.bake.enabled:
         _fail("eval.enabled", "needs baked probes (bake.enabled=true)", cfg.eval.enabled)
     from ..export._registry import FORMATS
