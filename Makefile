@@ -47,13 +47,17 @@ demo-stages: $(STAMP)
 	$(PY) -m probeplace demo --config configs/demo.yaml
 
 # pytest exits 5 when it collected no test: that is neither a pass nor a fail we accept.
+# Test files run in parallel (pytest-xdist: one worker per core, at most 4 — each holds its own JAX
+# compile caches; --dist loadfile keeps a file's module fixtures in one worker). Most of the suite's time
+# is XLA compilation, which is single-threaded: two workers on CI's two cores nearly halve it.
+PYTEST_PAR := -n auto --maxprocesses=4 --dist loadfile
 test: $(TOOLS)
-	@$(PY) -m pytest -q; rc=$$?; \
+	@$(PY) -m pytest -q $(PYTEST_PAR); rc=$$?; \
 	if [ $$rc -eq 5 ]; then echo "make test: pytest collected no tests - treating as an error"; exit 1; fi; \
 	exit $$rc
 
 test-slow: $(TOOLS)
-	$(PY) -m pytest -q -m slow
+	$(PY) -m pytest -q -m slow $(PYTEST_PAR)
 
 lint: $(STAMP)
 	$(VENV)/bin/ruff check src tests benchmarks experiments

@@ -197,6 +197,7 @@ def _glossy_sunlit():
     )
 
 
+@pytest.mark.slow  # ~15 s; the Cornell bake-ray agreement test keeps the backend in the default run
 def test_glossy_sunlit_scene_agrees(cornell):
     scene = _glossy_sunlit()
     assert scene.n_triangles == cornell.n_triangles  # see _glossy_sunlit: shares the compiled kernel

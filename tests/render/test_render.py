@@ -113,6 +113,7 @@ def test_sky_and_sun_closed_form():
     assert np.all(full > 0.8 * expected) and np.all(full < 1.1 * expected)
 
 
+@pytest.mark.slow  # ~35 s; chunking stays in the default run via test_trace_rays_chunks_and_offsets
 def test_batching_does_not_change_the_image(cornell):
     # Random numbers are a function of (pixel, sample, bounce): batching is invisible (common random numbers).
     a = RenderConfig(width=8, height=8, spp=8, max_depth=5, progress=False, paths_per_batch=_PPB)
@@ -138,6 +139,7 @@ class _HostCaster(AbstractRayCaster):
         return jnp.asarray(np.asarray(self.inner.occluded(origins, directions, t_max)))
 
 
+@pytest.mark.slow  # ~35 s: two full renders of the Cornell box
 def test_host_loop_matches_jitted_loop(cornell):
     cfg = RenderConfig(
         width=8, height=8, spp=4, max_depth=6, rr_depth=2, progress=False, paths_per_batch=_PPB
