@@ -6,12 +6,13 @@ import json
 import os
 import platform
 import statistics
-import tempfile
 import time
 from collections.abc import Callable
 from pathlib import Path
 
 import jax
+
+from probeplace._core import write_text_atomic
 
 ROOT = Path(__file__).resolve().parent
 RESULTS = ROOT / "results"
@@ -51,12 +52,8 @@ def env_info() -> dict:
 
 
 def write_result(name: str, result: dict) -> Path:
-    """Write ``results/<name>.json`` atomically (tmp file + os.replace) and print it as the last line."""
-    RESULTS.mkdir(parents=True, exist_ok=True)
-    path = RESULTS / f"{name}.json"
-    fd, tmp = tempfile.mkstemp(dir=RESULTS, prefix=f".{name}.", suffix=".json")
-    with os.fdopen(fd, "w") as f:
-        json.dump(result, f, indent=2, sort_keys=True)
-    os.replace(tmp, path)
+    """Write ``results/<name>.json`` atomically (``probeplace._core.write_text_atomic``) and print it as the
+    last line."""
+    path = write_text_atomic(RESULTS / f"{name}.json", json.dumps(result, indent=2, sort_keys=True))
     print(json.dumps(result, sort_keys=True), flush=True)
     return path

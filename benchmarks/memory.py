@@ -43,7 +43,7 @@ def _child(stage: str, size: int, chunk: int | None) -> dict:
         jax.block_until_ready(jax.jit(lambda x: x + 1)(jnp.zeros(4)))
         return {"peak_rss_bytes": _peak_bytes(), "seconds": time.perf_counter() - t0}
 
-    from probeplace._core import ProbeSet
+    from probeplace._core import ProbeSet, scene_box
     from probeplace.geometry import BruteForceCaster
     from probeplace.probes import (
         BakeConfig,
@@ -55,7 +55,7 @@ def _child(stage: str, size: int, chunk: int | None) -> dict:
     from probeplace.scene import cornell_box
 
     scene = cornell_box()
-    lo, hi = (np.asarray(b, np.float64) for b in scene.bounds)
+    lo, hi = scene_box(scene)
     rng = np.random.default_rng(0)
     caster = BruteForceCaster(scene)
     if stage == "bake":

@@ -73,10 +73,11 @@ def bake_rate(
     import jax.numpy as jnp
 
     from probeplace import ProbeSet
+    from probeplace._core import scene_box
     from probeplace.probes import BakeConfig, bake_probes, path_traced_radiance
     from probeplace.render import default_caster
 
-    lo, hi = (np.asarray(b) for b in scene.bounds)
+    lo, hi = scene_box(scene, dtype=None)
     frac = np.array([[0.3, 0.5, 0.6], [0.7, 0.75, 0.5], [0.5, 0.8, 0.4], [0.5, 0.6, 0.8]])
     if n_probes > len(frac):  # more probes: fixed pseudo-random points in the box's middle 60 %
         extra = np.random.default_rng(0).uniform(0.2, 0.8, (n_probes - len(frac), 3))

@@ -97,7 +97,7 @@ def main(argv=None) -> dict:
         BVHCaster,
         EmbreeCaster,
         build_sdf,
-        sdf_value,
+        lookup_sdf,
         trace_sdf_rays,
     )
     from probeplace.scene import find_scene_file, load_scene
@@ -164,10 +164,9 @@ def main(argv=None) -> dict:
         v = np.asarray(sponza.vertices, np.float64)
         lo, hi = v.min(0), v.max(0)
         pts, have = [], 0
-        sdf_at = jax.jit(jax.vmap(lambda p: sdf_value(grid, p)))
         while have < n_rays:
             cand = rng.uniform(lo, hi, (n_rays, 3)).astype(np.float32)
-            keep = cand[np.asarray(sdf_at(jnp.asarray(cand))) > 2 * h]
+            keep = cand[lookup_sdf(grid, cand) > 2 * h]
             pts.append(keep)
             have += keep.shape[0]
         o = np.concatenate(pts)[:n_rays]

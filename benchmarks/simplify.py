@@ -71,9 +71,8 @@ def main() -> None:
     setup_scene_path()
     import numpy as np
 
-    from probeplace._core import ProbeplaceError
+    from probeplace._core import ProbeplaceError, scene_box
     from probeplace.placement import lod_probe_grid, uniform_probe_grid
-    from probeplace.placement._uniform import scene_box
     from probeplace.scene import load_scene
 
     out: dict = {"env": env_info(), "unity_prototype_108_to_62_s_quoted": 40.39}

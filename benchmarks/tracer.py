@@ -45,7 +45,7 @@ import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 from _common import env_info, setup_scene_path, write_result
-from probeplace._core import ProbeSet
+from probeplace._core import ProbeSet, scene_box
 from probeplace.geometry import EmbreeCaster
 from probeplace.probes import BakeConfig, bake_probes
 from probeplace.probes._trace import RAY_UNRESOLVED, TraceConfig, make_tracer, trace_light_field
@@ -57,7 +57,7 @@ def _unit(v):
 
 
 def grid_positions(scene, dims):
-    lo, hi = (np.asarray(b, np.float64) for b in scene.bounds)
+    lo, hi = scene_box(scene)
     axes = [(np.arange(n) + 0.5) / n for n in dims]
     g = np.stack(np.meshgrid(*axes, indexing="ij"), -1).reshape(-1, 3)
     return g * (hi - lo) + lo

@@ -18,6 +18,7 @@ import jax.numpy as jnp
 import numpy as np
 
 from probeplace import ProbeSet
+from probeplace._core import scene_box
 from probeplace.probes import BakeConfig, bake_probes, path_traced_radiance, save_contact_sheet, save_probes
 from probeplace.render import default_caster
 from probeplace.scene import load_scene
@@ -32,7 +33,7 @@ def main(argv: list[str] | None = None) -> int:
     args = ap.parse_args(argv)
 
     scene = load_scene("cornell_box")
-    lo, hi = (np.asarray(b) for b in scene.bounds)
+    lo, hi = scene_box(scene, dtype=None)
     axes = [lo[i] + (hi[i] - lo[i]) * np.array([0.25, 0.75]) for i in range(3)]
     grid = np.stack(np.meshgrid(*axes, indexing="ij"), axis=-1).reshape(-1, 3)
     probes = ProbeSet(

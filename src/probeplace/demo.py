@@ -19,7 +19,7 @@ import jax.numpy as jnp
 import numpy as np
 from tqdm.auto import tqdm
 
-from ._core import Scene
+from ._core import Scene, load_pyplot
 
 DEMO_WIDTH = 128
 DEMO_HEIGHT = 128
@@ -36,10 +36,7 @@ def _primary_rays(scene: Scene, view: str, width: int, height: int) -> tuple[jax
 
 def _stage_gbuffer(scene: Scene, grid, out: Path) -> dict:
     """Exact primary hits and sphere-traced SDF hits for every view; images and their agreement."""
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
+    plt = load_pyplot()
 
     from .geometry import make_caster, trace_sdf_rays
 
@@ -88,10 +85,7 @@ def _stage_gbuffer(scene: Scene, grid, out: Path) -> dict:
 
 def _stage_sdf_slice(scene: Scene, grid, samples, out: Path) -> dict:
     """A slice of the SDF through the middle of the box, with the surface samples near the slice."""
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
+    plt = load_pyplot()
 
     values = np.asarray(grid.values)
     k = values.shape[2] // 2

@@ -7,6 +7,8 @@ rotated or axis-swapped export cannot pass for the right one. Row 4 is inactive 
 
 from __future__ import annotations
 
+import os
+
 import numpy as np
 
 from probeplace.export import ExportProbes, LightFieldMaps
@@ -84,3 +86,14 @@ def asymmetric_probes(*, with_sh: bool = True, with_maps: bool = False) -> Expor
         inside=INSIDE,
         maps=fixture_maps(n) if with_maps else None,
     )
+
+
+def write_baked_npz(path: str | os.PathLike) -> None:
+    """Baked probes in the ``probes.save_probes`` layout (keys and format tag), written with NumPy alone."""
+    maps = fixture_maps(len(POSITIONS))
+    dist = np.ones(maps.radiance.shape[:-1], np.float32)
+    np.savez_compressed(
+        path, format=np.asarray("probeplace.LightFieldProbes/1"), pos_world=POSITIONS, active=ACTIVE,
+        inside=INSIDE, radiance=maps.radiance, emission=maps.emission, normal=maps.radiance, distance=dist,
+        irradiance=maps.irradiance, moments=maps.moments, far=np.asarray(maps.far, np.float32),
+    )  # fmt: skip

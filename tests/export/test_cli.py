@@ -10,7 +10,7 @@ import pytest
 from probeplace.cli import main
 from probeplace.export import import_probes, read_probes
 
-from ._fixture import ACTIVE, INSIDE, POSITIONS, UNITS_M, fixture_maps
+from ._fixture import ACTIVE, INSIDE, POSITIONS, UNITS_M, write_baked_npz
 
 
 @pytest.fixture
@@ -27,15 +27,8 @@ def probe_set_file(tmp_path):
 
 @pytest.fixture
 def npz_file(tmp_path):
-    """Baked probes in the ``probes.save_probes`` layout (keys and format tag)."""
-    maps = fixture_maps(len(POSITIONS))
     path = tmp_path / "baked.npz"
-    dist = np.ones(maps.radiance.shape[:-1], np.float32)
-    np.savez_compressed(
-        path, format=np.asarray("probeplace.LightFieldProbes/1"), pos_world=POSITIONS, active=ACTIVE,
-        inside=INSIDE, radiance=maps.radiance, emission=maps.emission, normal=maps.radiance, distance=dist,
-        irradiance=maps.irradiance, moments=maps.moments, far=np.asarray(maps.far, np.float32),
-    )  # fmt: skip
+    write_baked_npz(path)
     return path
 
 

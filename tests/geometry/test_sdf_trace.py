@@ -11,6 +11,7 @@ from jax.test_util import check_grads
 
 from probeplace.geometry import (
     SDFGrid,
+    lookup_sdf,
     sdf_value,
     sdf_value_and_grad,
     soft_visibility,
@@ -91,6 +92,18 @@ def test_lookup_dtype_in_equals_out():
     assert sdf_value(grid, jnp.zeros(3, jnp.float32)).dtype == jnp.float32
     assert sdf_value(grid, jnp.zeros(3, jnp.float64)).dtype == jnp.float64
     assert jax.jit(sdf_value)(grid, jnp.zeros(3, jnp.float32)) == sdf_value(grid, jnp.zeros(3, jnp.float32))
+
+
+@pytest.mark.parametrize("n", [0, 1, 7, 8, 9, 30])
+def test_host_lookup_equals_per_point_lookup(n):
+    grid = analytic_grid(lambda p: np.linalg.norm(p, axis=-1) - SPHERE_R, dtype=jnp.float32)
+    pos = np.random.default_rng(n).uniform(-1.5, 1.5, (n, 3))  # float64 in, some outside the box
+    got = lookup_sdf(grid, pos)
+    assert got.dtype == np.float32 and got.shape == (n,)
+    want = [float(sdf_value(grid, jnp.asarray(p, jnp.float32))) for p in pos]
+    # jit + vmap may fuse the trilinear sums differently: a few float32 ulps of the values (≤ ~2.5)
+    np.testing.assert_allclose(got, np.asarray(want, np.float32), rtol=0, atol=8 * np.finfo(np.float32).eps)
+    assert lookup_sdf(grid, pos.reshape(-1)).shape == (n,)  # any shape that reshapes to (n, 3)
 
 
 # ---------------------------------------------------------------- sphere tracing

@@ -5,10 +5,9 @@ import json
 import numpy as np
 import pytest
 
-from probeplace._core import ConfigError
+from probeplace._core import ConfigError, scene_box
 from probeplace.cli import main
 from probeplace.placement import lod_probe_grid, place, uniform_probe_grid
-from probeplace.placement._uniform import scene_box
 
 
 def test_grid_method_matches_uniform_grid(cornell):

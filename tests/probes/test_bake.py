@@ -96,6 +96,7 @@ def test_bake_geometry_maps_match_closed_form(room, getkey):
     assert lf.radiance.dtype == jnp.float32
 
 
+@pytest.mark.slow  # ~25 s; tests/probes/test_trace.py checks the tracer on separate geometry maps by default
 def test_geometry_maps_have_their_own_resolution(room, getkey):
     """Geometry maps at 16² beside 8² radiance: the same distances, normals and inside flags as a bake
     whose radiance is 16² too (geometry is exact rays, no sampling), and the tracer — which reads only

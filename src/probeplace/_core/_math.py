@@ -1,6 +1,10 @@
-"""NaN-safe math helpers: values *and* gradients stay finite at the kinks (STYLE §5)."""
+"""Math helpers: NaN-safe functions whose values *and* gradients stay finite at the kinks (STYLE §5),
+and the power-of-two bucket sizes that host code pads batches to."""
 
 from __future__ import annotations
+
+import operator
+from typing import SupportsIndex
 
 import jax.numpy as jnp
 from jaxtyping import Array, Float
@@ -31,3 +35,18 @@ def luminance(rgb: Float[Array, "... 3"]) -> Float[Array, "..."]:
     """Rec. 709 relative luminance of linear RGB."""
     w = jnp.asarray([0.2126, 0.7152, 0.0722], rgb.dtype)
     return rgb @ w
+
+
+def next_pow2(n: SupportsIndex, *, lo: int = 1, hi: int | None = None) -> int:
+    """The smallest power of two ≥ ``n`` (1 for ``n`` ≤ 1), raised to at least ``lo``, then capped at ``hi``.
+
+    Host helper for padding a batch before a jitted call: varying counts fall into a few sizes, so the
+    code compiles a few times instead of once per count. ``hi`` (a chunk limit) need not be a power of two.
+
+    Args:
+        n: the count to pad (an ``int`` or a NumPy integer).
+        lo: the smallest size returned (unless ``hi`` is smaller).
+        hi: the largest size returned, or ``None`` for no cap.
+    """
+    p = max(lo, 1 << max(operator.index(n) - 1, 0).bit_length())
+    return p if hi is None else min(hi, p)

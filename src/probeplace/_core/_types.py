@@ -13,6 +13,8 @@ import jax.numpy as jnp
 import numpy as np
 from jaxtyping import Array, Bool, Float, Int, UInt32
 
+from ._errors import ConfigError
+
 
 def _check_last(name: str, x, tail: tuple[int, ...]) -> None:
     if tuple(x.shape[len(x.shape) - len(tail) :]) != tail:
@@ -139,6 +141,35 @@ class Scene(eqx.Module):
             if cam.name == name:
                 return cam
         raise KeyError(f"scene {self.name!r} has no view {name!r}; views: {[c.name for c in self.views]}")
+
+
+def scene_box(
+    scene: Scene | None, bounds=None, *, dtype: type[np.floating] | None = np.float64
+) -> tuple[np.ndarray, np.ndarray]:
+    """Host (lo, hi) corners of an axis-aligned box: the scene's (:attr:`Scene.bounds`) or ``bounds``.
+
+    Args:
+        scene: the scene whose vertex bounding box is wanted; unused (may be ``None``) with ``bounds``.
+        bounds: an explicit (lo, hi) box, each anything NumPy reads as 3 numbers; checked, not clipped.
+        dtype: NumPy dtype of the corners; ``None`` keeps the scene's (float32) for callers computing in
+            its precision. float64 is exact: the corners are vertex coordinates.
+
+    Returns:
+        (lo, hi), two (3,) arrays, world frame, scene units.
+
+    Raises:
+        ConfigError: ``bounds`` has hi ≤ lo on some axis, or neither ``scene`` nor ``bounds`` is given.
+        ValueError: ``bounds`` is not two corners of 3 numbers each.
+    """
+    if bounds is None:
+        if scene is None:
+            raise ConfigError("give a scene or explicit bounds")
+        box = np.asarray(scene.bounds, dtype)
+        return box[0], box[1]
+    lo, hi = (np.asarray(b, dtype).reshape(3) for b in bounds)
+    if not np.all(hi > lo):
+        raise ConfigError(f"bounds need hi > lo per axis, got {lo} and {hi}")
+    return lo, hi
 
 
 class Hit(eqx.Module):

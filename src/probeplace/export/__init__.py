@@ -5,12 +5,12 @@ Formats (``probeplace export <probes> --format <name> --out <path>``; docs/expor
 usd (lossless round trips).
 """
 
+from .._core._io import read_exr as read_exr
 from ._data import ExportError as ExportError
 from ._data import ExportProbes as ExportProbes
 from ._data import LightFieldMaps as LightFieldMaps
 from ._data import read_light_field_npz as read_light_field_npz
 from ._data import read_probes as read_probes
-from ._ddgi import read_exr as read_exr
 from ._ddgi import write_ddgi as write_ddgi
 from ._engines import GODOT_FROM_GLTF as GODOT_FROM_GLTF
 from ._engines import UNITY_FROM_GLTF as UNITY_FROM_GLTF

@@ -32,8 +32,9 @@ from pathlib import Path
 
 import numpy as np
 
+from .._core._io import write_bytes_atomic, write_exr, write_json_atomic
 from ._data import ExportError, ExportProbes
-from ._io_util import dumps_json, f32_list, write_bytes_atomic, write_text_atomic
+from ._io_util import f32_list
 from ._octa import add_border, resample_bordered, texel_directions, texel_solid_angles
 
 DDGI_FORMAT = "probeplace.DDGIAtlas/1"
@@ -69,27 +70,6 @@ def unpack_atlas(atlas: np.ndarray, n: int, tile: int, cols: int) -> np.ndarray:
         r, c = divmod(k, cols)
         out[k] = atlas[r * tile : (r + 1) * tile, c * tile : (c + 1) * tile]
     return out
-
-
-def _write_exr(path: Path, channels: dict[str, np.ndarray]) -> None:
-    import OpenEXR
-
-    header = {"compression": OpenEXR.ZIP_COMPRESSION, "type": OpenEXR.scanlineimage}
-    tmp = path.with_name(f".{path.name}.tmp.exr")
-    try:
-        with OpenEXR.File(header, {k: np.ascontiguousarray(v, np.float32) for k, v in channels.items()}) as f:
-            f.write(str(tmp))
-        os.replace(tmp, path)
-    finally:
-        tmp.unlink(missing_ok=True)
-
-
-def read_exr(path: str | os.PathLike) -> dict[str, np.ndarray]:
-    """Channels of an EXR file as float32 arrays (``"R"``, ``"G"``, ``"B"`` …)."""
-    import OpenEXR
-
-    with OpenEXR.File(str(path), separate_channels=True) as f:
-        return {k: np.asarray(v.pixels, np.float32) for k, v in f.channels().items()}
 
 
 def _png(path: Path, rgb01: np.ndarray) -> None:
@@ -144,8 +124,8 @@ def write_ddgi(
     names = {k: f"{stem}.{k}" for k in ("irradiance.exr", "distance.exr", "irradiance.png", "distance.png")}
     d = out.parent
     d.mkdir(parents=True, exist_ok=True)
-    _write_exr(d / names["irradiance.exr"], {"RGB": irr_atlas})
-    _write_exr(d / names["distance.exr"], {"R": mom_atlas[..., 0], "G": mom_atlas[..., 1]})
+    write_exr(d / names["irradiance.exr"], {"RGB": irr_atlas})
+    write_exr(d / names["distance.exr"], {"R": mom_atlas[..., 0], "G": mom_atlas[..., 1]})
     _png(d / names["irradiance.png"], irr_atlas / (1.0 + irr_atlas))
     far = act.maps.far
     _png(d / names["distance.png"], np.repeat(mom_atlas[..., :1] / far, 3, axis=-1))
@@ -187,4 +167,4 @@ def write_ddgi(
         },
     }
     written = [d / names[k] for k in names]
-    return [write_text_atomic(out, dumps_json(sidecar)), *written]
+    return [write_json_atomic(out, sidecar), *written]

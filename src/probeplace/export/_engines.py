@@ -20,8 +20,9 @@ from pathlib import Path
 
 import numpy as np
 
+from .._core._io import write_text_atomic
 from ._data import ExportError, ExportProbes
-from ._io_util import fmt_f32, write_text_atomic
+from ._io_util import fmt_f32
 
 # Right-handed +Y up (glTF) → engine frame, as a matrix acting on column vectors.
 UNITY_FROM_GLTF = np.diag([-1.0, 1.0, 1.0])

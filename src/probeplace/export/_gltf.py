@@ -27,8 +27,9 @@ from pathlib import Path
 
 import numpy as np
 
+from .._core._io import write_bytes_atomic, write_json_atomic
 from ._data import ExportError, ExportProbes
-from ._io_util import f32_list, write_bytes_atomic
+from ._io_util import f32_list
 from ._sh import SH_CONVENTION
 
 GLTF_EXTRAS_FORMAT = "probeplace.glTFProbes/1"
@@ -84,8 +85,7 @@ def write_gltf(probes: ExportProbes, out: str | os.PathLike, *, to_metres: bool 
     doc = to_gltf_doc(probes, to_metres=to_metres)
     if out.suffix.lower() == ".glb":
         return [write_bytes_atomic(out, _glb(doc))]
-    text = json.dumps(doc, indent=1, allow_nan=False) + "\n"
-    return [write_bytes_atomic(out, text.encode("utf-8"))]
+    return [write_json_atomic(out, doc)]
 
 
 def _load_doc(path: Path) -> dict:

@@ -23,8 +23,9 @@ from pathlib import Path
 
 import numpy as np
 
+from .._core._io import write_json_atomic
 from ._data import ExportError, ExportProbes
-from ._io_util import dumps_json, f32_list, write_text_atomic
+from ._io_util import f32_list
 from ._sh import SH_CONVENTION, SH_ORDER
 
 JSON_FORMAT = "probeplace.ProbeExport/1"
@@ -59,7 +60,7 @@ def to_json_doc(probes: ExportProbes) -> dict:
 
 def write_json(probes: ExportProbes, out: str | os.PathLike) -> list[Path]:
     """Write ``probes`` as a ``probeplace.ProbeExport/1`` JSON file; returns the files written."""
-    return [write_text_atomic(out, dumps_json(to_json_doc(probes)))]
+    return [write_json_atomic(out, to_json_doc(probes))]
 
 
 def from_json_doc(doc: object, where: str = "JSON") -> ExportProbes:

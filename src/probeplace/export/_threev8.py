@@ -40,8 +40,8 @@ from pathlib import Path
 
 import numpy as np
 
+from .._core._io import write_bytes_atomic, write_json_atomic
 from ._data import ExportError, ExportProbes
-from ._io_util import dumps_json, write_bytes_atomic, write_text_atomic
 from ._octa import resample_bordered
 from ._sh import SH_CONVENTION
 
@@ -236,7 +236,7 @@ def write_threev8(
     }
     if act.inside is not None:
         sidecar["inside"] = act.inside.tolist()
-    return [write_bytes_atomic(out, blob), write_text_atomic(f"{out}.json", dumps_json(sidecar))]
+    return [write_bytes_atomic(out, blob), write_json_atomic(f"{out}.json", sidecar)]
 
 
 def read_lod_grid(path: str | os.PathLike) -> LODProbeGrid:

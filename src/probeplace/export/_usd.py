@@ -21,6 +21,7 @@ from pathlib import Path
 
 import numpy as np
 
+from .._core._io import atomic_path
 from ._data import ExportError, ExportProbes
 from ._sh import SH_CONVENTION
 
@@ -45,10 +46,8 @@ def write_usd(probes: ExportProbes, out: str | os.PathLike, *, width: float | No
     if width is None:
         ext = np.ptp(probes.positions, axis=0) if probes.n else np.zeros(3)
         width = float(0.02 * np.linalg.norm(ext)) or 0.1
-    out.parent.mkdir(parents=True, exist_ok=True)
-    tmp = out.with_name(f".{out.stem}.tmp{out.suffix}")
-    stage = Usd.Stage.CreateNew(str(tmp))
-    try:
+    with atomic_path(out, suffix=".tmp" + out.suffix) as tmp:
+        stage = Usd.Stage.CreateNew(str(tmp))
         UsdGeom.SetStageUpAxis(stage, UsdGeom.Tokens.y)
         UsdGeom.SetStageMetersPerUnit(stage, probes.units_m)
         root = UsdGeom.Xform.Define(stage, "/ProbeSet")
@@ -81,9 +80,6 @@ def write_usd(probes: ExportProbes, out: str | os.PathLike, *, width: float | No
             pv.GetAttr().SetDocumentation(SH_CONVENTION)
         stage.GetRootLayer().Save()
         del stage
-        os.replace(tmp, out)
-    finally:
-        tmp.unlink(missing_ok=True)
     return [out]
 
 

@@ -10,6 +10,7 @@ from ._samples import SurfaceSamples as SurfaceSamples
 from ._samples import default_sample_spacing as default_sample_spacing
 from ._samples import sample_surface as sample_surface
 from ._sdf import SDFGrid as SDFGrid
+from ._sdf import lookup_sdf as lookup_sdf
 from ._sdf import sdf_value as sdf_value
 from ._sdf import sdf_value_and_grad as sdf_value_and_grad
 from ._sdf_build import build_sdf as build_sdf

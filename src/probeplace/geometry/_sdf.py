@@ -20,6 +20,8 @@ import jax.numpy as jnp
 import numpy as np
 from jaxtyping import Array, Float, Int16
 
+from .._core import next_pow2
+
 # Corner offsets of a cell, in the order of the flat gather below: bit 2 = x, bit 1 = y, bit 0 = z.
 _CORNERS = tuple((c >> 2 & 1, c >> 1 & 1, c & 1) for c in range(8))
 
@@ -162,3 +164,29 @@ def sdf_value_and_grad(grid: SDFGrid, p: Float[Array, "3"]) -> tuple[Float[Array
     zero-safe (finite) everywhere, including on cell faces and on the box boundary.
     """
     return jax.value_and_grad(sdf_value, argnums=1)(grid, p)
+
+
+@eqx.filter_jit
+def _sdf_rows(grid: SDFGrid, pos: Float[Array, "n 3"]) -> Float[Array, " n"]:
+    return jax.vmap(sdf_value, in_axes=(None, 0))(grid, pos)
+
+
+def lookup_sdf(grid: SDFGrid, pos: np.ndarray | Array) -> np.ndarray:
+    """Signed distance at many points, for host code: :func:`sdf_value` of each row, NumPy in and out.
+
+    One jitted call whose rows are padded (with the origin) to a power of two ≥ 8, so callers with
+    varying counts (a budget search's candidate grids, a refinement's new probes) share a few
+    compilations. Not differentiable (the result is NumPy); traced code vmaps :func:`sdf_value` itself.
+
+    Args:
+        grid: the SDF.
+        pos: query points, world frame; any shape that reshapes to (n, 3); cast to float32.
+
+    Returns:
+        (n,) float32 signed distances, scene units.
+    """
+    p = np.asarray(pos, np.float32).reshape(-1, 3)
+    n = len(p)
+    padded = np.zeros((next_pow2(n, lo=8), 3), np.float32)
+    padded[:n] = p
+    return np.asarray(_sdf_rows(grid, jnp.asarray(padded)))[:n]

@@ -23,7 +23,6 @@ import functools
 import hashlib
 import logging
 import os
-import tempfile
 import time
 from pathlib import Path
 
@@ -34,7 +33,7 @@ import numpy as np
 import scipy.ndimage as ndi
 from jaxtyping import Array, Float
 
-from .._core import ConfigError, ResourceError, Scene
+from .._core import ConfigError, ResourceError, Scene, write_atomic
 from ._sdf import SDFGrid, encode_trace
 from ._sdf_raster import _band_volume, decode_keys, rasterize_band
 from ._sdf_sign import fill_deep_sign, side_labels, weld_components
@@ -213,18 +212,6 @@ def _cache_path(cache_dir, digest: str) -> Path | None:
     return base / f"sdf-{digest[:32]}.npz"
 
 
-def _save_atomic(path: Path, **arrays) -> None:
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=path.stem, suffix=".tmp.npz")
-    try:
-        with os.fdopen(fd, "wb") as fh:
-            np.savez(fh, **arrays)
-        os.replace(tmp, path)  # atomic on POSIX: readers see the old file or the whole new one
-    except BaseException:
-        Path(tmp).unlink(missing_ok=True)
-        raise
-
-
 def _grid_from_arrays(values, trace, origin, h, band, digest) -> SDFGrid:
     return SDFGrid(
         values=jnp.asarray(values, jnp.float32),
@@ -336,9 +323,9 @@ def build_sdf(
     trace = encode_trace(oriented, thin)
     del mag, inside, dist, behind, in_band, oriented, thin
     if path is not None:
-        _save_atomic(
-            path, values=values, trace=trace, origin=origin, voxel_size=np.float64(h), band=np.float64(band)
-        )
+        arrays = {"values": values, "trace": trace, "origin": origin}
+        arrays |= {"voxel_size": np.float64(h), "band": np.float64(band)}
+        write_atomic(path, lambda f: np.savez(f, **arrays))  # readers see the old file or the whole new one
         clock("cache write %s", path)
     return _grid_from_arrays(values, trace, origin, h, band, digest)
 

@@ -51,11 +51,12 @@ import jax.numpy as jnp
 import numpy as np
 from jaxtyping import Array, Bool, Float
 
-from .._core import ConfigError, Scene, safe_norm
+from .._core import ConfigError, Scene, next_pow2, safe_norm
 from ..geometry import (
     SDFGrid,
     SurfaceSamples,
     build_sdf,
+    lookup_sdf,
     sample_surface,
     sdf_value,
     trace_sdf_rays,
@@ -211,7 +212,7 @@ def witness_positions(problem: PlacementProblem, idx: np.ndarray) -> tuple[np.nd
     idx = np.asarray(idx, np.int64).ravel()
     n = len(idx)
     # padded to a power of two: the search calls this with varying counts, a few compilations serve all
-    pad = np.zeros(max(8, 1 << max(n - 1, 0).bit_length()), np.int64)
+    pad = np.zeros(next_pow2(n, lo=8), np.int64)
     pad[:n] = idx
     ok, q = _normal_march(
         problem.grid,
@@ -562,20 +563,10 @@ def wang_fitness_binary(problem: PlacementProblem, pos, vis: np.ndarray | None =
     return float((term @ w).sum())
 
 
-@eqx.filter_jit
-def _sdf_many(grid: SDFGrid, pos: Float[Array, "n 3"]) -> Float[Array, " n"]:
-    return jax.vmap(lambda p: sdf_value(grid, p))(pos)
-
-
 def probe_clearance(problem: PlacementProblem, pos) -> np.ndarray:
     """SDF value at each probe (negative: inside geometry).
 
-    Host helper: the positions are padded to a power-of-two count so the search's many calls with
-    varying probe counts share a few compilations.
+    Host helper (:func:`probeplace.geometry.lookup_sdf`): the search's many calls with varying probe
+    counts share a few compilations.
     """
-    pos = np.asarray(pos, np.float32).reshape(-1, 3)
-    n = len(pos)
-    m = max(8, 1 << max(n - 1, 0).bit_length())
-    pad = np.zeros((m, 3), np.float32)
-    pad[:n] = pos
-    return np.asarray(_sdf_many(problem.grid, jnp.asarray(pad)))[:n]
+    return lookup_sdf(problem.grid, np.asarray(pos, np.float32))

@@ -41,7 +41,7 @@ import dataclasses
 import jax.numpy as jnp
 import numpy as np
 
-from .._core import ConfigError, ProbeSet, Scene
+from .._core import ConfigError, ProbeSet, Scene, scene_box
 from ..geometry import AbstractRayCaster, make_caster
 
 
@@ -285,12 +285,8 @@ def lod_probe_grid(
     logical = div.astype(np.int64) << lvl
     if int(np.prod(logical)) > 1 << 27:
         raise ConfigError(f"logical resolution {logical.tolist()} is too large (over 2^27 cells)")
-    if bounds is None:
-        v = np.asarray(scene.vertices, np.float64)
-        lo, hi = v.min(0), v.max(0)
-    else:
-        lo, hi = (np.asarray(b, np.float64).reshape(3) for b in bounds)
-    if not np.all(hi > lo):
+    lo, hi = scene_box(scene, bounds)
+    if not np.all(hi > lo):  # a flat scene's own box
         raise ConfigError(f"coverage box needs hi > lo per axis, got {lo} and {hi}")
     # round through float32 once so the stored box and the construction agree
     lo, hi = lo.astype(np.float32).astype(np.float64), hi.astype(np.float32).astype(np.float64)

@@ -9,7 +9,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from .._core import ConfigError, ProbeSet, Scene
+from .._core import ConfigError, ProbeSet, Scene, load_pyplot, scene_box
 from ..geometry import build_sdf
 from ._auto import auto_budget
 from ._fitness import FitnessConfig, binary_coverage, binary_visibility, make_problem, probe_clearance
@@ -219,11 +219,9 @@ def smallest_full_grid(problem, *, max_probes: int = 4096, target: float = 1.0) 
 
 def save_top_view(scene: Scene, pos: np.ndarray | jax.Array, path: str | Path, *, title: str = "") -> Path:
     """PNG of the probes (red) over the scene's triangles seen from above (x right, z down; +Y up)."""
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
     from matplotlib.collections import PolyCollection
+
+    plt = load_pyplot()
 
     tri = np.asarray(scene.vertices)[np.asarray(scene.faces)]
     fig, ax = plt.subplots(figsize=(6, 6), dpi=100)
@@ -285,7 +283,7 @@ BASELINE_OPTIONS = {
 def _grid_dims_for_budget(scene: Scene, budget: int, inside: str, sdf) -> tuple:
     """Finest uniform grid (spacing shrinking by 10%) with at most ``budget`` active probes; ``sdf`` (the
     scene's, built once by the caller) classifies the probes inside geometry for every candidate."""
-    from ._uniform import scene_box, uniform_probe_grid
+    from ._uniform import uniform_probe_grid
 
     lo, hi = scene_box(scene)
     best = (1, 1, 1)
@@ -320,7 +318,7 @@ def _place_baseline(
     occlusion rays when available), so the methods' coverages compare like for like.
     """
     from ._lod_grid import lod_probe_grid
-    from ._uniform import scene_box, uniform_probe_grid
+    from ._uniform import uniform_probe_grid
     from ._vardis import dense_probe_sh, evaluation_points, poisson_disk_probes, vardis_simplify
 
     unknown = set(options) - set(BASELINE_OPTIONS[method])

@@ -30,8 +30,8 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from .._core import ConfigError, ProbeSet, Scene
-from ..geometry import SDFGrid, build_sdf, sdf_value, sdf_value_and_grad
+from .._core import ConfigError, ProbeSet, Scene, scene_box
+from ..geometry import SDFGrid, build_sdf, lookup_sdf, sdf_value, sdf_value_and_grad
 from ._grid import grid_dims, uniform_grid
 
 INSIDE_CHOICES = ("keep", "disable", "relocate")
@@ -65,12 +65,6 @@ class UniformGridResult:
     n_failed: int
 
 
-def scene_box(scene: Scene) -> tuple[np.ndarray, np.ndarray]:
-    """The scene's vertex bounding box (float64 lo, hi)."""
-    v = np.asarray(scene.vertices, np.float64)
-    return v.min(0), v.max(0)
-
-
 def lattice(
     lo: np.ndarray,
     hi: np.ndarray,
@@ -102,20 +96,6 @@ def lattice(
         z, y, x = np.meshgrid(axes[2], axes[1], axes[0], indexing="ij")
         pos = np.stack([x.ravel(), y.ravel(), z.ravel()], axis=1)
     return (pos + off * step).astype(np.float32), d, step  # type: ignore[return-value]
-
-
-@jax.jit
-def _sdf_values_padded(sdf: SDFGrid, pos: jax.Array) -> jax.Array:
-    return jax.vmap(lambda p: sdf_value(sdf, p))(pos)
-
-
-def _sdf_values(sdf: SDFGrid, pos: np.ndarray) -> np.ndarray:
-    """SDF at each position; PERF: padded to a power of two so the many candidate grids of a budget search
-    share a few compiled shapes."""
-    n = len(pos)
-    padded = np.zeros((max(8, 1 << max(n - 1, 0).bit_length()), 3), np.float32)
-    padded[:n] = pos
-    return np.asarray(_sdf_values_padded(sdf, jnp.asarray(padded)))[:n]
 
 
 def _fibonacci_directions(n: int) -> np.ndarray:
@@ -233,8 +213,6 @@ def uniform_probe_grid(
     if jitter > 0 and key is None:
         raise ConfigError("jitter > 0 needs a PRNG key (key=jax.random.key(...))")
     if bounds is None:
-        if scene is None:
-            raise ConfigError("give a scene or explicit bounds")
         bounds = scene_box(scene)
     pos, d, step = lattice(bounds[0], bounds[1], dims=dims, spacing=spacing, offset=offset)
     if jitter > 0:
@@ -250,7 +228,7 @@ def uniform_probe_grid(
             if scene is None:
                 raise ConfigError(f"inside={inside!r} needs a scene or an sdf")
             sdf = build_sdf(scene)
-        vals = _sdf_values(sdf, pos)
+        vals = lookup_sdf(sdf, pos)  # PERF: padded rows, so a budget search's many grids share compiles
         is_inside = vals < 0
     if inside == "disable":
         active &= ~is_inside

@@ -40,7 +40,7 @@ import jax.numpy as jnp
 import numpy as np
 from jaxtyping import Array, Float
 
-from .._core import ConfigError, Scene
+from .._core import ConfigError, Scene, next_pow2, scene_box
 from .._core._sh import sh_basis
 from ._tetra import TetMesh
 from ._uniform import _fibonacci_directions
@@ -126,20 +126,9 @@ def dense_probe_sh(
 
 
 def _sdf_values(sdf, pts: np.ndarray) -> np.ndarray:
-    from ..geometry import sdf_value
+    from ..geometry import lookup_sdf
 
-    vals = jax.jit(jax.vmap(lambda p: sdf_value(sdf, p)))(jnp.asarray(pts, jnp.float32))
-    return np.asarray(vals, np.float64)
-
-
-def _box(scene: Scene, bounds) -> tuple[np.ndarray, np.ndarray]:
-    if bounds is None:
-        v = np.asarray(scene.vertices, np.float64)
-        return v.min(0), v.max(0)
-    lo, hi = (np.asarray(b, np.float64).reshape(3) for b in bounds)
-    if not np.all(hi > lo):
-        raise ConfigError(f"bounds need hi > lo per axis, got {lo} and {hi}")
-    return lo, hi
+    return lookup_sdf(sdf, pts).astype(np.float64)
 
 
 def poisson_disk_probes(
@@ -154,7 +143,7 @@ def poisson_disk_probes(
 
     if not (np.isfinite(radius) and radius > 0):
         raise ConfigError(f"radius must be a positive number, got {radius!r}")
-    lo, hi = _box(scene, bounds)
+    lo, hi = scene_box(scene, bounds)
     n_cand = int(30 * np.prod(hi - lo) / (4.0 / 3.0 * np.pi * (radius / 2) ** 3))
     if n_cand > 2_000_000:
         raise ConfigError(f"radius {radius} is too small for the scene box (over 2e6 candidates)")
@@ -237,7 +226,7 @@ def evaluation_points(
         nrm = np.asarray(smp.normal, np.float64)[pick]
         off = 2.0 * h if offset is None else float(offset)
         front, back = x + off * nrm, x - off * nrm
-        lo, hi = _box(scene, bounds)
+        lo, hi = scene_box(scene, bounds)
         inbox = lambda q: np.all((q > lo) & (q < hi), axis=1)
         # the side with the larger SDF, among sides inside the scene box (open scenes: not behind walls)
         flip = np.where(inbox(back), _sdf_values(sdf, back), -np.inf) > np.where(
@@ -245,7 +234,7 @@ def evaluation_points(
         )
         return np.where(flip[:, None], back, front).astype(np.float32)
     if kind == "grid":
-        lo, hi = _box(scene, bounds)
+        lo, hi = scene_box(scene, bounds)
         pts = np.zeros((0, 3))
         m = n
         for _ in range(8):  # grow the lattice until enough free points
@@ -301,10 +290,6 @@ def _score_chunk(feat, ref, inv_den, wc, err_cur, pt, idx, w, mask):
     return e, jnp.sum(e - jnp.where(mask, err_cur[pt], jnp.zeros_like(e)), axis=-1)
 
 
-def _pow2(x: int, lo: int) -> int:
-    return max(lo, 1 << max(0, int(x) - 1).bit_length())
-
-
 @dataclasses.dataclass(frozen=True, eq=False)
 class VardisResult:
     """Outcome of :func:`vardis_simplify`.
@@ -344,9 +329,9 @@ class _Scorer:
         """(Δ summed error per plan, per-plan new point errors), one padded jitted call per chunk."""
         if not plans:
             return np.zeros(0), []
-        a = _pow2(max(len(p.points) for p in plans), 8)
+        a = next_pow2(max(len(p.points) for p in plans), lo=8)
         cmax = max(1, 1 << int(math.log2(max(1, CHUNK_ELEMENTS // (a * 4 * self.m * 3)))))
-        c = min(_pow2(len(plans), 8), cmax)
+        c = min(next_pow2(len(plans), lo=8), cmax)
         err = jnp.asarray(err_cur, jnp.float32)
         deltas, errs = [], []
         for s in range(0, len(plans), c):

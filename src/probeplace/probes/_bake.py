@@ -67,6 +67,7 @@ from .._core import (
     SceneError,
     add_border,
     jittered_texel_directions,
+    scene_box,
     texel_directions,
 )
 from .._core._errors import check_memory
@@ -295,7 +296,7 @@ def default_radiance_res(scene: Scene, *, quality: float = 1.0) -> int:
     """
     from ..geometry import default_sample_spacing
 
-    lo, hi = (np.asarray(b) for b in scene.bounds)
+    lo, hi = scene_box(scene, dtype=None)
     d = 0.25 * float(np.linalg.norm(hi - lo))
     spacing = default_sample_spacing(scene, quality=quality)
     r = 3.5 * d / spacing
@@ -395,7 +396,7 @@ def bake_probes(
         raise ConfigError("cannot bake an empty probe set")
     res = config.radiance_res or default_radiance_res(scene, quality=config.quality)
     geo_res = config.geometry_res or res
-    lo, hi = (np.asarray(b) for b in scene.bounds)
+    lo, hi = scene_box(scene, dtype=None)
     far = float(2.0 * np.linalg.norm(hi - lo))
 
     n = pos.shape[0]

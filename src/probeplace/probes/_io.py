@@ -10,14 +10,13 @@ from __future__ import annotations
 
 import json
 import os
-import tempfile
 import zipfile
 from pathlib import Path
 
 import jax.numpy as jnp
 import numpy as np
 
-from .._core import BakeSettings, LightFieldProbes, ProbeplaceError
+from .._core import BakeSettings, LightFieldProbes, ProbeplaceError, write_atomic
 
 _FORMAT = "probeplace.LightFieldProbes/1"  # the maps' layout; export._data reads the same tag
 _MAPS = (
@@ -46,16 +45,7 @@ def save_probes(path: str | os.PathLike, probes: LightFieldProbes) -> Path:
         arrays["backface"] = np.asarray(probes.backface)
     if probes.bake is not None:
         arrays["bake_settings"] = np.asarray(json.dumps(probes.bake.to_dict()))
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.", suffix=".tmp")
-    try:
-        with os.fdopen(fd, "wb") as f:
-            np.savez_compressed(f, **arrays)
-        os.replace(tmp, path)
-    except BaseException:
-        Path(tmp).unlink(missing_ok=True)
-        raise
-    return path
+    return write_atomic(path, lambda f: np.savez_compressed(f, **arrays))
 
 
 def load_probes(path: str | os.PathLike) -> LightFieldProbes:

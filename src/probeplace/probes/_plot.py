@@ -7,7 +7,7 @@ from pathlib import Path
 
 import numpy as np
 
-from .._core import LightFieldProbes
+from .._core import LightFieldProbes, load_pyplot
 
 _COLUMNS = ("radiance", "emission", "normal", "distance", "irradiance", "moments σ")
 
@@ -26,10 +26,7 @@ def save_contact_sheet(probes: LightFieldProbes, path: str | os.PathLike, *, max
 
     Returns the path written.
     """
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
+    plt = load_pyplot()
 
     n = min(int(probes.pos_world.shape[0]), max_probes)
     inner = lambda a: np.asarray(a)[:n, 1:-1, 1:-1]

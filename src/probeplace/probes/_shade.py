@@ -41,6 +41,7 @@ from jaxtyping import Array, Float
 from .._core import (
     ConfigError,
     LightFieldProbes,
+    next_pow2,
     safe_normalize,
     sample_bilinear,
     strip_border,
@@ -174,7 +175,7 @@ def _chunked(fn, points, normals, chunk: int):
     n = pts.shape[0]
     if n == 0:
         return jnp.zeros((0, 3), pts.dtype)
-    size = min(chunk, max(64, 1 << (n - 1).bit_length()))
+    size = next_pow2(n, lo=64, hi=chunk)
     outs = []
     for s in range(0, n, size):
         k = min(size, n - s)

@@ -1,7 +1,8 @@
 """Images on disk: float EXR (OpenEXR) for data, tone-mapped sRGB PNG (Pillow) for looking at.
 
 EXR layout: one file, one channel group per layer: ``RGB`` for the main image plus ``<layer>.RGB``
-for the others (e.g. ``direct.RGB``, ``direct_var.RGB``), 32-bit float, ZIP compression.
+for the others (e.g. ``direct.RGB``, ``direct_var.RGB``), 32-bit float, ZIP compression, written
+atomically (``_core.write_exr``).
 """
 
 from __future__ import annotations
@@ -10,10 +11,10 @@ from collections.abc import Mapping
 from pathlib import Path
 
 import numpy as np
-import OpenEXR
 from jaxtyping import Array, Float
 from PIL import Image
 
+from .._core import read_exr, write_exr
 from ._render import RenderResult
 
 
@@ -42,22 +43,13 @@ def save_exr(
             raise ValueError(f"layer {name!r} has shape {a.shape}, others {shape}")
         shape = a.shape
         channels["RGB" if name == main else f"{name}.RGB"] = a
-    path = Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    header = {"compression": OpenEXR.ZIP_COMPRESSION, "type": OpenEXR.scanlineimage}
-    with OpenEXR.File(header, channels) as f:
-        f.write(str(path))
-    return path
+    return write_exr(path, channels)
 
 
 def load_exr(path: str | Path) -> dict[str, np.ndarray]:
     """Read an EXR written by :func:`save_exr`: layer name (``""`` for the main one) → (h, w, 3) float32."""
-    out = {}
-    with OpenEXR.File(str(path)) as f:
-        for name, ch in f.channels().items():
-            layer = "" if name == "RGB" else name.removesuffix(".RGB")
-            out[layer] = np.asarray(ch.pixels, np.float32)
-    return out
+    channels = read_exr(path, separate_channels=False)
+    return {"" if name == "RGB" else name.removesuffix(".RGB"): v for name, v in channels.items()}
 
 
 def tonemap(rgb: Float[Array, "h w 3"] | np.ndarray, exposure: float = 0.0) -> np.ndarray:

@@ -22,7 +22,7 @@ import numpy as np
 from jaxtyping import Array, Bool, Float, Int, Key, UInt32
 from tqdm.auto import tqdm
 
-from .._core import Camera, ConfigError, Scene, SceneError
+from .._core import Camera, ConfigError, Scene, SceneError, next_pow2
 from .._core._errors import check_memory
 from ..geometry import BRUTE_FORCE_MAX_TRIANGLES, AbstractRayCaster, BruteForceCaster, BVHCaster, make_caster
 from ._camera import camera_rays
@@ -127,7 +127,7 @@ def _batch_layout(cfg: RenderConfig, n_items: int) -> tuple[int, int]:
     """(items per batch P, samples per batch G) with P·G ≤ paths_per_batch; P is rounded up to a power
     of two (at least 64) so renders of different sizes share compiled kernels."""
     budget = cfg.paths_per_batch
-    p = min(budget, max(64, 1 << (max(n_items, 1) - 1).bit_length()))
+    p = next_pow2(n_items, lo=64, hi=budget)
     g = max(1, min(cfg.spp, budget // p))
     return p, g
 
@@ -241,7 +241,7 @@ def _batch_host(ctx, caster, source, seed, offset, pix0, smp0, spp, n_items, p, 
         live = np.flatnonzero(alive)
         if len(live) == 0:
             break
-        m = min(n, 1 << max(len(live) - 1, 0).bit_length())
+        m = next_pow2(len(live), hi=n)
         live_p = np.concatenate([live, np.full(m - len(live), live[0])]).astype(np.int32)  # repeats: same hit
         origin, direction = np.asarray(paths.origin), np.asarray(paths.direction)
         hit = caster.closest_hit(jnp.asarray(origin[live_p]), jnp.asarray(direction[live_p]))
