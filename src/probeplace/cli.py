@@ -140,7 +140,10 @@ def _positive_int(text: str) -> int:
 
 
 def build_parser() -> argparse.ArgumentParser:
+    from . import __version__
+
     p = argparse.ArgumentParser(prog="probeplace", description=__doc__)
+    p.add_argument("--version", action="version", version=f"probeplace {__version__}")
     p.add_argument("-v", "--verbose", action="store_true", help="log at INFO level")
     sub = p.add_subparsers(dest="command", required=True)
     s = sub.add_parser("scenes", help="list built-in scenes and scenes found on the search path")

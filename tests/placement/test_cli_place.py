@@ -7,6 +7,15 @@ import pytest
 from probeplace.cli import main
 
 
+def test_version(capsys):
+    from probeplace import __version__
+
+    with pytest.raises(SystemExit) as e:
+        main(["--version"])
+    assert e.value.code == 0
+    assert capsys.readouterr().out.strip() == f"probeplace {__version__}"
+
+
 def test_place_bad_budget(capsys):
     assert main(["place", "cornell_box", "--budget", "zero"]) == 2
     assert "budget" in capsys.readouterr().err
