@@ -143,6 +143,7 @@ def test_sponza_preset_runs_tiny(evaluate, tmp_path, monkeypatch):
     assert cfg.scene.name == "crytek_sponza" and m["n_probes"] >= 1
 
 
+@pytest.mark.slow  # a second tiny run; the backend keys are checked by test_config, Mitsuba by tests/render
 def test_mitsuba_bake_runs_tiny(tmp_path):
     """bake.backend=mitsuba with a finer geometry map: the backend and geometry resolution reach the bake
     and metrics.json, and Dr.Jit's compile time is split off like JAX's."""

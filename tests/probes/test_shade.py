@@ -390,6 +390,7 @@ def test_perfect_trace_reads_the_hit_colour(cornell_colour_small):
     assert np.median(np.abs(da - bil)) < 1e-6  # most reads see one surface: identical
 
 
+@pytest.mark.slow  # ~25 s; the filters stay in the default run via test_filtered_reads_closed_forms
 def test_glossy_texel_filter_is_the_resolved_texel(cornell_colour_small):
     scene, lf, o, d, _, want = cornell_colour_small
     tr = make_tracer(lf, scene.bounds)

@@ -316,6 +316,7 @@ def test_fallback_probe_that_sees_the_point_resolves(occluder):
     assert np.all(np.asarray(out.probes_tried) <= TraceConfig().max_probes)
 
 
+@pytest.mark.slow  # ~15 s; test_hierarchies_are_conservative holds the hierarchies together by default
 def test_hierarchies_agree_where_cells_are_ambiguous(occluder):
     """The lower and upper bounds cover every candidate surfel of an ambiguous cell: flat (the reference:
     every fine cell), two-level and hi-Z give the same status and t."""
