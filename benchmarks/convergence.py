@@ -28,11 +28,15 @@ Targets (issue 16), each reported as ``targets: {key: {value, target, met}}``:
 ``--seeds`` bake + evaluation seeds). Keys of cells not run (``--quick``, or Sponza absent) are null with
 a reason in ``skipped``. Last stdout line: the JSON, also written to benchmarks/results/convergence.json
 (``convergence_geometry<N>.json`` with ``--geometry-res N``: geometry maps at least N², radiance as given).
+Geometry maps are ``--geometry-factor`` (default 2) times finer than the radiance maps: the light-field
+trace resolves depth edges at the geometry resolution, while the radiance texels' footprint sets the
+representation floor (``BakeConfig.geometry_res``).
 """
 
 from __future__ import annotations
 
 import argparse
+import dataclasses
 import hashlib
 import json
 import sys
@@ -135,7 +139,11 @@ class Bench:
                 "bake_depth": c.max_depth - 1,
                 "first_hit_lobes": "diffuse",  # what texels store (probes.path_traced_radiance's default)
             }
-            | ({"geometry_res": self.args.geometry_res} if self.args.geometry_res else {})
+            | (
+                {"geometry_res": self.args.geometry_res}
+                if self.args.geometry_res
+                else {"geometry_factor": self.args.geometry_factor}
+            )
             | ({"backend": self.args.backend} if self.args.backend != "jax" else {})
         )
 
@@ -160,7 +168,7 @@ class Bench:
         a = self.args
         pos = grid_positions(self.scene, dims)
         per_batch = int(max(1, min(len(pos), (1 << 18) // (res * res * a.n_sub * a.n_sub))))
-        geo = max(res, a.geometry_res) if a.geometry_res else None
+        geo = max(res, a.geometry_res) if a.geometry_res else a.geometry_factor * res
         cfg = BakeConfig(
             radiance_res=res, geometry_res=geo, n_sub=a.n_sub, probes_per_batch=per_batch, progress=False
         )
@@ -177,8 +185,11 @@ class Bench:
                 pos_world=jnp.asarray(pos[:per_batch], jnp.float32), active=jnp.ones(per_batch, bool)
             )
             t0 = time.perf_counter()
+            # The inside test is left out of the warm-up: on a handful of probes it may find none that
+            # escapes and warn about a closed scene, which says nothing about the real bake.
+            warm_cfg = dataclasses.replace(cfg, inside_test="none")
             bake_probes(
-                self.scene, sub, caster=self.caster, radiance_fn=fn, key=jax.random.key(seed), config=cfg
+                self.scene, sub, caster=self.caster, radiance_fn=fn, key=jax.random.key(seed), config=warm_cfg
             )
             warm_s = time.perf_counter() - t0
             self.warm.add((res, per_batch))
@@ -336,7 +347,16 @@ def main(argv=None) -> dict:
         "--geometry-res",
         type=int,
         default=None,
-        help="geometry maps at least this fine (BakeConfig.geometry_res; default: the radiance resolution)",
+        help="geometry maps at least this fine (BakeConfig.geometry_res; overrides --geometry-factor)",
+    )
+    ap.add_argument(
+        "--geometry-factor",
+        type=int,
+        default=2,
+        choices=[1, 2, 4],
+        help="geometry maps this many times finer than the radiance maps (default 2: on Sponza 16x8x8 at "
+        "64², 128² geometry cut the glossy MSE from 1.79 to 1.05x black and the trace excess from 1.18 to "
+        "0.34; 1 = McGuire's single resolution)",
     )
     args = ap.parse_args(argv)
     q = args.quick

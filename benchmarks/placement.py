@@ -25,12 +25,12 @@ def run(scene_name: str) -> dict:
 
     scene = load_scene(scene_name)
     t0, c0 = time.perf_counter(), time.process_time()
-    probes, meta = place(scene, budget="auto")
+    placed = place(scene, budget="auto")
     return {
         "s": time.perf_counter() - t0,
         "cpu_s": time.process_time() - c0,
-        "probes": probes.capacity,
-        "meta": meta,
+        "probes": placed.n_probes,
+        "meta": placed.metadata,
     }
 
 

@@ -8,6 +8,11 @@
 
 Every run goes to ``results/<experiment>/<run>/`` (written atomically); a re-run of a sweep skips the
 finished runs and redoes an interrupted one. The work itself is ``probeplace.experiment.run``.
+
+This file is the only place Hydra and OmegaConf meet the library: it stores the schema
+(``probeplace.experiment.ExperimentConfig``) in Hydra's ConfigStore as ``base_config`` (configs/config.yaml
+lists it first, so every group merges onto a typed node and unknown keys or wrong types are refused at
+composition) and hands ``run`` the typed config.
 """
 
 from __future__ import annotations
@@ -17,12 +22,19 @@ import sys
 from pathlib import Path
 
 import hydra
-from omegaconf import DictConfig
+from hydra.core.config_store import ConfigStore
+from omegaconf import DictConfig, OmegaConf
 
 from probeplace._core import ProbeplaceError
-from probeplace.experiment import register_configs, run
+from probeplace.experiment import ExperimentConfig, run
 
 CONFIG_DIR = str(Path(__file__).resolve().parents[1] / "configs")
+
+
+def register_configs() -> None:
+    """Store the schema in Hydra's ConfigStore as ``base_config``."""
+    ConfigStore.instance().store(name="base_config", node=ExperimentConfig)
+
 
 register_configs()
 
@@ -35,7 +47,7 @@ def _sigterm(signum, frame):  # a terminated sweep unwinds like Ctrl-C: the part
 def main(cfg: DictConfig) -> dict:
     signal.signal(signal.SIGTERM, _sigterm)
     try:
-        result = run(cfg)
+        result = run(OmegaConf.to_object(cfg))
     except ProbeplaceError as e:  # one clear line per failed run, no traceback
         print(f"probeplace: error: {e}", file=sys.stderr)
         raise SystemExit(2) from None

@@ -77,16 +77,17 @@ def _add_export_parser(sub) -> None:
 
 # --- place (placement helper) ---
 def _cmd_place(args: argparse.Namespace) -> int:
+    """Place probes (``placement.place``), write the probe set with its record and the top view."""
     from pathlib import Path
 
     from ._core import save_probe_set
     from .placement import place, save_top_view
-    from .scene import load_scene
+    from .scene import load_scene, scene_overrides_from_args
 
-    scene = load_scene(args.scene)
+    scene = load_scene(args.scene, overrides=scene_overrides_from_args(args))
     budget = "auto" if args.budget == "auto" else _positive_int(args.budget)
     refiner = None if args.refiner == "none" else args.refiner
-    probes, meta = place(
+    res = place(
         scene,
         method=args.method,
         budget=budget,
@@ -94,22 +95,14 @@ def _cmd_place(args: argparse.Namespace) -> int:
         objective=args.objective,
         seed=args.seed,
         target=args.target,
-        **({"options": _place_options(args.option)} if args.option else {}),
+        options=_place_options(args.option),
     )
     out = Path(args.out)
-    meta["scene"] = args.scene
-    save_probe_set(out, probes, units_m=scene.unit_m, metadata=meta)
+    save_probe_set(out, res.probes, units_m=scene.unit_m, metadata={**res.metadata, "scene": args.scene})
     png = Path(args.png) if args.png else out.with_suffix(".png")
-    save_top_view(
-        scene,
-        probes.pos_world,
-        png,
-        title=f"{args.scene}: {probes.capacity} probes, coverage {meta['coverage']:.4f}",
-    )
-    print(
-        f"{probes.capacity} probes, coverage {meta['coverage']:.4f}, "
-        f"{meta['timings']['total_s']:.1f} s -> {out}, {png}"
-    )
+    summary = f"{res.n_probes} probes, coverage {res.coverage:.4f}"
+    save_top_view(scene, res.probes.pos_world, png, title=f"{args.scene}: {summary}")
+    print(f"{summary}, {res.timings['total_s']:.1f} s -> {out}, {png}")
     return 0
 
 
@@ -152,14 +145,27 @@ def build_parser() -> argparse.ArgumentParser:
     d.add_argument("--out", default="results/demo", help="output folder (default: results/demo)")
     d.add_argument("--config", help="YAML config (default: built-in values, as in configs/demo.yaml)")
     d.set_defaults(func=_cmd_demo)
-    # --- place (placement helper) ---
+    _add_place_parser(sub)
+    _add_export_parser(sub)
+    from .evaluate._cli import add_parser as _add_evaluate  # --- evaluate (issue 4) ---
+
+    _add_evaluate(sub)
+    return p
+
+
+def _add_place_parser(sub) -> None:
+    """``probeplace place``: methods and refiners from their registries."""
+    from .placement import OBJECTIVES, REFINERS, get_method, method_names
+    from .scene import add_scene_options
+
     pl = sub.add_parser("place", help="place probes in a scene and write a ProbeSet JSON file + top view")
     pl.add_argument("scene", help="scene name or file (see `probeplace scenes`)")
+    add_scene_options(pl)
     pl.add_argument(
         "--method",
         default="skeleton+medial",
-        choices=["skeleton", "medial", "skeleton+medial", "grid", "lod-grid", "vardis"],
-        help="seed method, or a baseline: grid, lod-grid (Yang 2023), vardis (Vardis 2021)",
+        choices=method_names(),
+        help="; ".join(f"{m}: {get_method(m).label}" for m in method_names()),
     )
     pl.add_argument(
         "-o",
@@ -171,22 +177,13 @@ def build_parser() -> argparse.ArgumentParser:
         "-o dense_probes=512 -o tolerance=0.05); see docs/baselines.md",
     )
     pl.add_argument("--budget", default="auto", help="'auto' (fewest probes to the target) or a count")
-    pl.add_argument(
-        "--refiner",
-        default="none",
-        help="none, gibbs, ascent, bfgs, nonlinear_cg, adam, projected_gradient, lbfgsb",
-    )
-    pl.add_argument("--objective", default="coverage", choices=["coverage", "wang"])
+    pl.add_argument("--refiner", default="none", help=", ".join(("none", *REFINERS)))
+    pl.add_argument("--objective", default="coverage", choices=OBJECTIVES)
     pl.add_argument("--target", type=float, default=1.0, help="coverage target (default 1.0)")
     pl.add_argument("--seed", type=int, default=0)
     pl.add_argument("--out", default="probes.json", help="ProbeSet file (default probes.json)")
     pl.add_argument("--png", default=None, help="top view PNG (default: --out with .png)")
     pl.set_defaults(func=_cmd_place)
-    _add_export_parser(sub)
-    from .evaluate._cli import add_parser as _add_evaluate  # --- evaluate (issue 4) ---
-
-    _add_evaluate(sub)
-    return p
 
 
 def main(argv: list[str] | None = None) -> int:

@@ -136,7 +136,8 @@ def _stage_place(scene: Scene, cfg: dict, out: Path) -> tuple[dict, object]:
     from ._core import save_probe_set
     from .placement import place, save_top_view
 
-    probes, meta = place(scene, method=cfg["method"], budget="auto", seed=cfg["seed"])
+    placed = place(scene, method=cfg["method"], budget="auto", seed=cfg["seed"])
+    probes, meta = placed.probes, placed.metadata
     save_probe_set(out / "probes.json", probes, units_m=scene.unit_m, metadata=meta)
     pos = np.asarray(probes.pos_world)[np.asarray(probes.active)]
     save_top_view(scene, pos, out / "probes_top_view.png", title=f"{scene.name}: {len(pos)} probes (auto)")
@@ -148,10 +149,10 @@ def _stage_place(scene: Scene, cfg: dict, out: Path) -> tuple[dict, object]:
 def _stage_bake(scene: Scene, probes, cfg: dict, out: Path) -> dict:
     """Bake the placed probes with the reference path tracer; npz, contact sheet and a glTF export."""
     from .export import export_probes, read_probes
+    from .geometry import make_caster
     from .probes import BakeConfig, bake_probes, path_traced_radiance, save_contact_sheet, save_probes
-    from .render import default_caster
 
-    caster = default_caster(scene)
+    caster = make_caster(scene, use="render")
     t0 = time.perf_counter()
     lf = bake_probes(
         scene,

@@ -13,12 +13,14 @@ def compose(overrides: list[str], *, hydra_cfg: bool = False):
     """The config experiments/run.py would get for ``overrides`` (with ``hydra`` when ``hydra_cfg``)."""
     from hydra import compose as hydra_compose
     from hydra import initialize_config_dir
+    from hydra.core.config_store import ConfigStore
     from hydra.core.global_hydra import GlobalHydra
 
-    from probeplace.experiment import register_configs
+    from probeplace.experiment import ExperimentConfig
 
     if not GlobalHydra.instance().is_initialized():  # once per process: initialising is the slow part
-        register_configs()
+        # what experiments/run.py's register_configs does (the Hydra edge; the library has no Hydra)
+        ConfigStore.instance().store(name="base_config", node=ExperimentConfig)
         initialize_config_dir(config_dir=str(CONFIGS), version_base="1.3").__enter__()
     return hydra_compose("config", overrides=overrides, return_hydra_config=hydra_cfg)
 

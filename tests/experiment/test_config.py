@@ -9,6 +9,7 @@ import pytest
 
 from probeplace._core import ConfigError
 from probeplace.experiment import ExperimentConfig, run, run_name, to_config
+from probeplace.placement import get_method, method_names
 
 from ._util import CONFIGS, PRESETS, compose, sweep_params
 
@@ -28,7 +29,7 @@ def test_every_group_option_composes_and_validates(group):
         extra = ["eval=none"] if (group, option) == ("bake", "none") else []  # eval needs a bake
         cfg = to_config(compose([f"{group}={option}", *extra]))
         if group == "placer":
-            assert cfg.placer.method == option.replace("_", "-").replace("skeleton-medial", "skeleton+medial")
+            assert get_method(cfg.placer.method).config_name == option
         if group == "refiner":
             assert cfg.refiner.name == option
 
@@ -41,6 +42,36 @@ def test_every_swept_value_of_a_preset_validates(preset):
         for v in values:
             cfg = to_config(compose([f"+experiment={preset}", f"{key}={v}"]))
             assert cfg.name == preset
+
+
+def test_placer_configs_are_the_registered_methods():
+    """One config per registered placement method, named by its ``config_name``, and no other."""
+    files = {p.stem for p in (CONFIGS / "placer").glob("*.yaml")}
+    assert files == {get_method(m).config_name for m in method_names()}
+
+
+def test_bake_and_eval_groups_are_built_from_the_library_configs():
+    """Every scalar library setting is a key of its group, with the library's default unless the runner
+    sets it itself; the library config of a run carries the group's values."""
+    import dataclasses
+
+    from probeplace.evaluate import EvalConfig
+    from probeplace.experiment import BakeStage, EvalStage, bake_config, eval_config
+    from probeplace.probes import BakeConfig
+
+    bake_keys = {f.name for f in dataclasses.fields(BakeStage)}
+    assert {"irradiance_res", "moments_res", "inside_test", "quality"} <= bake_keys
+    assert "progress" not in bake_keys and "max_depth" not in bake_keys
+    eval_keys = {f.name for f in dataclasses.fields(EvalStage)}
+    assert {"glossy_filter", "normal_bias", "bootstrap_resamples"} <= eval_keys
+    assert not {"spp", "max_depth", "seed", "progress", "trace"} & eval_keys
+    cfg = to_config({"bake": {"moments_res": 8}, "eval": {"glossy_filter": "bilinear"}, "tracer": {"spp": 3}})
+    assert bake_config(cfg) == BakeConfig(radiance_res=16, moments_res=8, probes_per_batch=4, progress=True)
+    ev = eval_config(cfg)
+    assert isinstance(ev, EvalConfig) and (ev.glossy_filter, ev.spp, ev.max_depth) == ("bilinear", 3, 4)
+    # the same keys as Hydra overrides
+    composed = to_config(compose(["bake.moments_res=8", "eval.glossy_filter=bilinear", "tracer.spp=3"]))
+    assert composed == cfg
 
 
 def test_presets_cover_the_issue():
@@ -73,6 +104,9 @@ BAD = [
     ({"tracer": {"max_depth": 2}}, "tracer.max_depth"),
     ({"eval": {"shading": "phong"}}, "eval.shading"),
     ({"eval": {"glossy_ref_spp": 1}}, "eval.glossy_ref_spp"),
+    ({"bake": {"n_sub": 0}}, "bake.n_sub: must be a positive int, got 0"),
+    ({"bake": {"inside_test": "ask"}}, "bake.inside_test: must be one of"),
+    ({"eval": {"glossy_filter": "blur"}}, "eval.glossy_filter: must be one of"),
     ({"bake": {"enabled": False}}, "eval.enabled"),
     ({"export": {"formats": ["fbx"]}}, "export.formats[0]"),
     ({"scene": {"translate_frac": [1.0, 0.0, 0.0]}}, "scene.translate_frac"),
@@ -193,3 +227,20 @@ def test_unloadable_mitsuba_is_refused_before_any_work(override, key, tmp_path, 
         _check_backends(
             to_config({"bake": {"enabled": False, "backend": "mitsuba"}, "eval": {"enabled": False}})
         )
+
+
+def test_a_finished_run_from_before_a_new_key_is_still_the_same_run(tmp_path):
+    """A key added to the schema later (a new library setting) is absent from an older run's config.yaml:
+    that run had its default, so resuming keeps it; another value is a different run."""
+    import yaml
+
+    from probeplace.experiment._run import _check_same_config
+    from probeplace.experiment._schema import config_to_dict
+
+    cfg = to_config({})
+    old = config_to_dict(cfg)
+    del old["bake"]["moments_res"], old["eval"]["glossy_filter"]
+    (tmp_path / "config.yaml").write_text(yaml.safe_dump(old))
+    _check_same_config(cfg, tmp_path)
+    with pytest.raises(ConfigError, match=r"bake\.moments_res differ"):
+        _check_same_config(to_config({"bake": {"moments_res": 8}}), tmp_path)

@@ -301,13 +301,13 @@ def test_threaded_layout_lists_each_triangle_once_per_octant():
 
 def test_make_caster_choices(cornell):
     assert isinstance(make_caster(cornell), EmbreeCaster)
-    assert isinstance(make_caster(cornell, jittable=True), BruteForceCaster)
-    assert isinstance(make_caster(load_scene("courtyard"), jittable=True), BVHCaster)
+    assert isinstance(make_caster(cornell, use="jit"), BruteForceCaster)
+    assert isinstance(make_caster(load_scene("courtyard"), use="jit"), BVHCaster)
     assert isinstance(make_caster(cornell, "bvh", lanes=16), BVHCaster)
     assert make_caster(cornell, "embree", threads=1).threads == 1
     with pytest.raises(ConfigError, match="unknown ray-casting backend"):
         make_caster(cornell, "optix")
     with pytest.raises(ConfigError, match="cannot be jitted"):
-        make_caster(cornell, "embree", jittable=True)
+        make_caster(cornell, "embree", use="jit")
     with pytest.raises(ConfigError, match="schedule"):
         BVHCaster(cornell, schedule="wide")

@@ -45,7 +45,7 @@ def test_auto_budget_reports_the_refiner_status(small):
     """A solver stopped by ``max_steps`` is reported as such (the stability study's "not converged"), and
     ``place`` turns the status into ``refine_converged``."""
     from probeplace.placement._optimistix import OptimistixRefiner
-    from probeplace.placement._place import _refine_report
+    from probeplace.placement._registry import refine_record as _refine_report
 
     res = auto_budget(small, key=jax.random.key(0), refiner=OptimistixRefiner(solver="bfgs", max_steps=1))
     assert res.refine_status == "reached max_steps"

@@ -10,8 +10,14 @@ from probeplace.cli import main
 from probeplace.placement import lod_probe_grid, place, uniform_probe_grid
 
 
+def _placed(scene, **kw):
+    """``place`` as (probes, metadata record): what these tests check."""
+    res = place(scene, **kw)
+    return res.probes, res.metadata
+
+
 def test_grid_method_matches_uniform_grid(cornell):
-    probes, meta = place(cornell, method="grid", options={"dims": (3, 3, 3), "inside": "disable"})
+    probes, meta = _placed(cornell, method="grid", options={"dims": (3, 3, 3), "inside": "disable"})
     r = uniform_probe_grid(cornell, dims=(3, 3, 3), inside="disable")
     expect = np.asarray(r.probes.pos_world)[np.asarray(r.probes.active)]
     np.testing.assert_array_equal(np.asarray(probes.pos_world), expect)
@@ -23,8 +29,8 @@ def test_grid_method_matches_uniform_grid(cornell):
 def test_grid_method_offset_shifts_the_lattice(cornell):
     """An ``offset`` of (0.25, 0, 0.5) cells moves every probe by exactly that many cell widths (keep all)."""
     opts = {"dims": (3, 3, 3), "inside": "keep"}
-    base, _ = place(cornell, method="grid", options=opts)
-    moved, meta = place(cornell, method="grid", options={**opts, "offset": [0.25, 0.0, 0.5]})
+    base, _ = _placed(cornell, method="grid", options=opts)
+    moved, meta = _placed(cornell, method="grid", options={**opts, "offset": [0.25, 0.0, 0.5]})
     lo, hi = (np.asarray(b, np.float64) for b in np.asarray(cornell.bounds))
     cell = (hi - lo) / 3
     shift = np.asarray(moved.pos_world, np.float64) - np.asarray(base.pos_world, np.float64)
@@ -46,15 +52,15 @@ def test_shift_keeps_the_grid_fixed_in_the_world(cornell):
     lo, hi = scene_box(cornell)
     t = np.array([0.07, 0.0, -0.05]) * (hi - lo)
     opts = {"dims": (3, 3, 3), "inside": "keep"}
-    base = np.asarray(place(cornell, method="grid", options=opts)[0].pos_world, np.float64)
+    base = np.asarray(_placed(cornell, method="grid", options=opts)[0].pos_world, np.float64)
     moved = _translated(cornell, t)
-    follow = np.asarray(place(moved, method="grid", options=opts)[0].pos_world, np.float64)
-    fixed, meta = place(moved, method="grid", options={**opts, "shift": (-t).tolist()})
+    follow = np.asarray(_placed(moved, method="grid", options=opts)[0].pos_world, np.float64)
+    fixed, meta = _placed(moved, method="grid", options={**opts, "shift": (-t).tolist()})
     np.testing.assert_allclose(follow, base + t, atol=1e-4)
     np.testing.assert_allclose(np.asarray(fixed.pos_world, np.float64), base, atol=1e-4)
     assert meta["config"]["shift"] == pytest.approx((-t).tolist())
     with pytest.raises(ConfigError, match="shift"):
-        place(cornell, method="grid", options={**opts, "shift": [float("nan"), 0.0, 0.0]})
+        _placed(cornell, method="grid", options={**opts, "shift": [float("nan"), 0.0, 0.0]})
 
 
 def test_shift_keeps_the_lod_grid_on_its_world_lattice(cornell):
@@ -72,8 +78,8 @@ def test_shift_keeps_the_lod_grid_on_its_world_lattice(cornell):
 
     moved = _translated(cornell, t)
     opts = {"base_divisions": base, "levels": 2}
-    fixed, meta = place(moved, method="lod-grid", options={**opts, "shift": (-t).tolist()})
-    follow, _ = place(moved, method="lod-grid", options=opts)
+    fixed, meta = _placed(moved, method="lod-grid", options={**opts, "shift": (-t).tolist()})
+    follow, _ = _placed(moved, method="lod-grid", options=opts)
     assert meta["config"]["levels"] == 2 and fixed.pos_world.shape[0] > 8
     assert on_lattice(fixed.pos_world)
     assert not on_lattice(follow.pos_world)
@@ -81,7 +87,7 @@ def test_shift_keeps_the_lod_grid_on_its_world_lattice(cornell):
 
 @pytest.mark.slow  # several SDF-classified grids + coverage: ~15 s
 def test_grid_budget_is_the_finest_grid_within_it(cornell):
-    probes, meta = place(cornell, method="grid", budget=40)
+    probes, meta = _placed(cornell, method="grid", budget=40)
     assert probes.capacity <= 40
     # invariant of the spacing search: the next finer lattice (10% smaller spacing) exceeds the budget
     from probeplace.placement import grid_dims
@@ -99,11 +105,11 @@ def test_grid_budget_is_the_finest_grid_within_it(cornell):
 
 
 def test_lod_grid_method(cornell):
-    probes, meta = place(cornell, method="lod-grid", options={"base_divisions": (2, 2, 2), "levels": 2})
+    probes, meta = _placed(cornell, method="lod-grid", options={"base_divisions": (2, 2, 2), "levels": 2})
     g = lod_probe_grid(cornell, base_divisions=(2, 2, 2), sub_division_level=2)
     np.testing.assert_array_equal(np.asarray(probes.pos_world), g.positions)
     assert sum(meta["lod_levels"]) == g.probe_count == meta["n_probes"]
-    small, meta2 = place(
+    small, meta2 = _placed(
         cornell, method="lod-grid", budget=g.probe_count - 1, options={"base_divisions": (2, 2, 2)}
     )
     assert small.capacity <= g.probe_count - 1 and meta2["config"]["levels"] < 3
@@ -114,7 +120,7 @@ VARDIS_OPTS = {"dense_probes": 64, "n_eval": 64, "n_dirs": 64, "spp": 2, "max_de
 
 @pytest.mark.slow  # path-traced probe SH + coverage: ~40 s on 2 cores
 def test_vardis_method_target_count(cornell):
-    probes, meta = place(cornell, method="vardis", budget=20, options=VARDIS_OPTS)
+    probes, meta = _placed(cornell, method="vardis", budget=20, options=VARDIS_OPTS)
     assert probes.capacity == 20 and probes.method == "vardis"
     lo, hi = scene_box(cornell)
     r = uniform_probe_grid(cornell, spacing=float(np.prod(hi - lo) / 64) ** (1 / 3), inside="disable")
@@ -127,18 +133,18 @@ def test_vardis_method_target_count(cornell):
     assert h["count"][0] == len(dense) and h["count"][-1] == 20 and h["error"][0] == 0.0
     assert meta["refined"] is False and meta["timings"]["probe_values_s"] > 0
     # determinism: same seed → same dense values, evaluation points and removal order
-    again, meta2 = place(cornell, method="vardis", budget=20, options=VARDIS_OPTS)
+    again, meta2 = _placed(cornell, method="vardis", budget=20, options=VARDIS_OPTS)
     np.testing.assert_array_equal(np.asarray(again.pos_world), np.asarray(probes.pos_world))
     assert meta2["vardis_history"] == h
 
 
 def test_bad_options(cornell):
     with pytest.raises(ConfigError, match="unknown grid options"):
-        place(cornell, method="grid", options={"spacing": 3})
+        _placed(cornell, method="grid", options={"spacing": 3})
     with pytest.raises(ConfigError, match="options apply"):
-        place(cornell, method="skeleton", options={"dims": 3})
+        _placed(cornell, method="skeleton", options={"dims": 3})
     with pytest.raises(ConfigError, match="method"):
-        place(cornell, method="octree")
+        _placed(cornell, method="octree")
 
 
 def test_cli_place_grid(tmp_path, capsys):
@@ -166,10 +172,73 @@ def test_cli_place_grid(tmp_path, capsys):
 
 @pytest.mark.slow  # refiner on the coverage objective: ~30 s
 def test_baseline_refinement_never_lowers_coverage(cornell):
-    _, base = place(cornell, method="grid", options={"dims": (2, 2, 2)})
-    probes, meta = place(
+    _, base = _placed(cornell, method="grid", options={"dims": (2, 2, 2)})
+    probes, meta = _placed(
         cornell, method="grid", options={"dims": (2, 2, 2)}, refiner="ascent", n_opt_samples=400
     )
     assert isinstance(meta["refined"], bool) and meta["coverage"] >= base["coverage"]
     assert probes.capacity == base["n_probes"] and "refine_s" in meta["timings"]
     assert meta["refine_converged"] == (meta["refine_status"] == "ok") and "refine_status" not in base
+
+
+def test_place_returns_a_typed_result(cornell):
+    """``place`` returns a frozen PlaceResult whose fields and ``metadata`` record agree."""
+    import dataclasses
+
+    from probeplace.placement import PlaceResult
+
+    res = place(cornell, method="grid", options={"dims": (2, 2, 2)}, seed=1)
+    assert isinstance(res, PlaceResult) and res.method == "grid" and res.request.seed == 1
+    with pytest.raises(dataclasses.FrozenInstanceError):
+        res.coverage = 1.0
+    meta = res.metadata
+    assert meta["n_probes"] == res.n_probes == res.probes.capacity and meta["coverage"] == res.coverage
+    assert res.refine_converged is None and meta["refined"] is False and "refine_status" not in meta
+    assert res.target_reached is None and "target_reached" not in meta  # no automatic search
+    json.dumps(meta)
+
+
+def test_a_registered_method_is_placed_through_place(cornell):
+    """A method registers once (name, options, function, label) and ``place`` / ``method_options`` find it."""
+    from dataclasses import dataclass
+
+    from probeplace.placement import PlacementMethod, method_names, method_options, register_method
+    from probeplace.placement._place import finish_lattice
+    from probeplace.placement._registry import _METHODS
+
+    @dataclass(frozen=True)
+    class CentreOptions:
+        lift: float = 0.0
+
+    def place_centre(scene, request, options):
+        lo, hi = scene_box(scene)
+        pos = (0.5 * (lo + hi) + [0.0, options.lift * (hi - lo)[1], 0.0])[None]
+        from probeplace.geometry import build_sdf
+
+        return finish_lattice(
+            scene, request, "centre", pos, sdf=build_sdf(scene), key=None, timings={}, t_all=0.0, info={}
+        )
+
+    register_method(PlacementMethod("centre", place_centre, CentreOptions, "one probe at the centre"))
+    try:
+        assert "centre" in method_names() and method_options("centre") == {"lift": 0.0}
+        res = place(cornell, method="centre", options={"lift": 0.1})
+        assert res.n_probes == 1 and res.metadata["method"] == "centre"
+        with pytest.raises(ConfigError, match="unknown centre options"):
+            place(cornell, method="centre", options={"height": 1.0})
+        with pytest.raises(ValueError, match="already registered"):
+            register_method(PlacementMethod("centre", place_centre))
+    finally:
+        _METHODS.pop("centre")
+
+
+def test_a_caster_object_decides_the_coverage(cornell):
+    """``caster=`` takes a caster object as given: the exact JAX BVH's binary coverage of a grid equals
+    Embree's (both exact casters of the same triangles; ties at grazing rays aside, so to 1e-3)."""
+    from probeplace.geometry import make_caster
+
+    opts = {"dims": (3, 3, 3), "inside": "disable"}
+    by_embree = place(cornell, method="grid", options=opts, caster="embree")
+    by_bvh = place(cornell, method="grid", options=opts, caster=make_caster(cornell, "bvh"))
+    assert by_bvh.metadata["visibility"] == "BVHCaster"
+    assert by_bvh.coverage == pytest.approx(by_embree.coverage, abs=1e-3)

@@ -42,8 +42,8 @@ def _digest(probes) -> str:
 
 
 def _run(scene, method, seed=3, **extra):
-    probes, meta = place(scene, method=method, seed=seed, **{**OPTIONS.get(method, {}), **extra})
-    return probes, meta
+    placed = place(scene, method=method, seed=seed, **{**OPTIONS.get(method, {}), **extra})
+    return placed.probes, placed.metadata
 
 
 def _assert_same(a, b):
@@ -89,8 +89,7 @@ sys.path.insert(0, {root!r})
 from tests.reliability.test_determinism import OPTIONS, _digest
 out = {{}}
 for m in {methods!r}:
-    p, _ = place(cornell_box(), method=m, seed=3, **OPTIONS[m])
-    out[m] = _digest(p)
+    out[m] = _digest(place(cornell_box(), method=m, seed=3, **OPTIONS[m]).probes)
 print(json.dumps(out))
 """
 

@@ -13,6 +13,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 import pytest
+from jax.experimental import checkify
 
 from probeplace.geometry import BruteForceCaster, intersect_triangles, soft_visibility, sphere_trace
 
@@ -150,7 +151,13 @@ def test_fitness_gradients_with_coincident_and_on_surface_probes(problem, cornel
     p[3] = np.asarray(problem.position[0])  # exactly on a sample
     pos = jnp.asarray(p, jnp.float32)
     for fn in (coverage_objective, wang_fitness)[: 2 if wang else 1]:
-        v, g = jax.value_and_grad(lambda q, fn=fn: fn(problem, q))(pos)
+        # One jitted program with a NaN check after every primitive (forward and backward pass): what
+        # debug_nans checks when the function runs eagerly, without compiling each primitive apart.
+        vg = checkify.checkify(
+            jax.value_and_grad(lambda q, fn=fn: fn(problem, q)), errors=checkify.nan_checks
+        )
+        err, (v, g) = jax.jit(vg)(pos)
+        err.throw()
         _finite((v, g), fn.__name__)
 
 

@@ -283,17 +283,19 @@ def test_random_config_values_are_refused_or_valid(name, data):
 
 def test_chunked_tracing_matches_unchunked(cornell, cornell_baked):
     """``trace_light_field(..., chunk=k)`` (bounded memory, benchmarks/memory.py) gives the same answers as
-    the one-batch trace, including a last partial chunk (100 rays, chunk 32)."""
+    the one-batch trace, including a last partial chunk (N_RAYS = 64 rays, chunk 24). N_RAYS rays: the
+    one-batch trace is the one test_tracer_terminates_with_finite_output compiles."""
     from probeplace.probes import trace_light_field
 
     _, tr = cornell_baked
     lo, hi = (np.asarray(b, np.float64) for b in cornell.bounds)
     rng = np.random.default_rng(3)
-    o = jnp.asarray(lo + rng.uniform(0.05, 0.95, (100, 3)) * (hi - lo), jnp.float32)
-    d = rng.normal(size=(100, 3))
+    o = jnp.asarray(lo + rng.uniform(0.05, 0.95, (N_RAYS, 3)) * (hi - lo), jnp.float32)
+    d = rng.normal(size=(N_RAYS, 3))
     d = jnp.asarray(d / np.linalg.norm(d, axis=1, keepdims=True), jnp.float32)
     a = trace_light_field(tr, o, d)
-    b = trace_light_field(tr, o, d, chunk=32)
+    assert N_RAYS % 24 != 0
+    b = trace_light_field(tr, o, d, chunk=24)
     np.testing.assert_array_equal(np.asarray(a.status), np.asarray(b.status))
     np.testing.assert_array_equal(np.asarray(a.probe), np.asarray(b.probe))
     # same per-ray arithmetic; only XLA's fusion may differ: a few float32 ulp of the scene size

@@ -11,11 +11,14 @@ from .._core import ConfigError
 
 def add_parser(sub) -> None:
     """Register the ``evaluate`` subcommand on an argparse subparsers object."""
+    from ..scene import add_scene_options
+
     e = sub.add_parser(
         "evaluate",
         help="evaluate a probe set on a scene view: MSE per component vs the path tracer (docs/evaluate.md)",
     )
     e.add_argument("--scene", required=True, help="scene name or file (see `probeplace scenes`)")
+    add_scene_options(e)
     e.add_argument("--probes", required=True, help="ProbeSet .json (probeplace place) or baked .npz")
     e.add_argument("--view", default=None, help="camera name (default: the scene's first view)")
     e.add_argument("--out", default="results/eval", help="output folder (default results/eval)")
@@ -96,6 +99,7 @@ def _checked_inputs(args: argparse.Namespace):
 def run(args: argparse.Namespace) -> int:
     import jax
 
+    from ..geometry import make_caster
     from ..probes import (
         bake_depth_for,
         bake_probes,
@@ -104,19 +108,19 @@ def run(args: argparse.Namespace) -> int:
         path_traced_radiance,
         save_probes,
     )
-    from ..render import default_caster
-    from ..scene import load_scene
+    from ..scene import load_scene, scene_overrides_from_args
     from . import evaluate, write_evaluation
 
+    overrides = scene_overrides_from_args(args)  # a bad --sun/--sky/--camera fails before any work
     path, config, bake_cfg, probes = _checked_inputs(args)
-    scene = load_scene(args.scene)
+    scene = load_scene(args.scene, overrides=overrides, require_light=True)
     views = [c.name for c in scene.views]
     if not views:
         raise ConfigError(f"scene {scene.name!r} has no view to evaluate (add one in its sidecar config)")
     view = args.view or views[0]
     if view not in views:
         raise ConfigError(f"--view: scene {scene.name!r} has no view {view!r}; views: {views}")
-    caster = default_caster(scene)
+    caster = make_caster(scene, use="render")
     if path.suffix == ".npz":
         lf = load_probes(path)
         check_bake_settings(lf, scene_name=scene.name, eval_max_depth=config.max_depth)

@@ -182,6 +182,10 @@ def _sample_one(mats, specular, offset_len, o, d, t, tri, ng, ns, mat, u1):
     return x, ns_f, origin, wi, w, pdf_s, rho, hit & (wo_l[2] > 0)
 
 
+# Built once at import: a jit of a fresh vmap inside the function traced and compiled again every call.
+_pixel_uniforms = jax.jit(jax.vmap(path_uniforms, in_axes=(None, 0, 0, None)), static_argnums=3)
+
+
 @eqx.filter_jit
 def _samples(mats, specular, offset_len, o, d, hit, u1) -> _Samples:
     out = jax.vmap(_sample_one, in_axes=(None, None, None, 0, 0, 0, 0, 0, 0, 0, 0))(
@@ -198,9 +202,8 @@ def sample_primary(scene: Scene, camera: Camera, config: EvalConfig, *, seed: in
     seed_u = jnp.asarray(seed, jnp.uint32)
     pix = jnp.repeat(jnp.arange(W * H, dtype=jnp.int32), S)
     smp = jnp.tile(jnp.arange(S, dtype=jnp.int32), W * H)
-    pu = jax.jit(jax.vmap(path_uniforms, in_axes=(None, 0, 0, None)), static_argnums=3)
-    u0 = pu(seed_u, pix, smp, 0)
-    u1 = pu(seed_u, pix, smp, 1)
+    u0 = _pixel_uniforms(seed_u, pix, smp, 0)
+    u1 = _pixel_uniforms(seed_u, pix, smp, 1)
     o, d = camera_rays(camera, W, H, pix, u0[:, 1:3])
     hit = caster.closest_hit(o, d)
     lo, hi = scene_box(scene)

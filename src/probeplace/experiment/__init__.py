@@ -1,5 +1,8 @@
-"""experiment stage (see DESIGN.md): Hydra config schemas, ``run(cfg) -> RunResult``, atomic results."""
+"""experiment stage (see DESIGN.md): config schemas, ``run(cfg) -> RunResult``, atomic results.
 
+Imports neither Hydra nor OmegaConf: ``experiments/run.py`` is the Hydra edge and passes its config down."""
+
+from ..placement import METHODS as PLACERS  # noqa: F401 (public: the placement registry's names)
 from ._report import load_runs as load_runs
 from ._report import make_report as make_report
 from ._report import pareto_front as pareto_front
@@ -13,15 +16,17 @@ from ._run import load_experiment_scene as load_experiment_scene
 from ._run import run as run
 from ._run import run_dir as run_dir
 from ._run import run_name as run_name
-from ._schema import PLACERS as PLACERS
 from ._schema import BakeConfig as BakeConfig
+from ._schema import BakeStage as BakeStage
 from ._schema import EvalConfig as EvalConfig
+from ._schema import EvalStage as EvalStage
 from ._schema import ExperimentConfig as ExperimentConfig
 from ._schema import ExportConfig as ExportConfig
 from ._schema import PlacerConfig as PlacerConfig
 from ._schema import RefinerConfig as RefinerConfig
 from ._schema import SceneConfig as SceneConfig
 from ._schema import TracerConfig as TracerConfig
-from ._schema import register_configs as register_configs
+from ._schema import bake_config as bake_config
+from ._schema import eval_config as eval_config
 from ._schema import to_config as to_config
 from ._schema import validate as validate

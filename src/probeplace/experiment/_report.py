@@ -126,7 +126,11 @@ def pareto_front(points: list) -> list[int]:
 
 
 def _labels(runs: list[dict]) -> list[str]:
-    return sorted({r["label"] for r in runs}, key=lambda s: (s != "grid", s != "lod-grid", s))
+    """Run labels: the reference baselines first (placement registry order), then alphabetical."""
+    from ..placement import reference_methods
+
+    first = {m: i for i, m in enumerate(reference_methods())}
+    return sorted({r["label"] for r in runs}, key=lambda s: (first.get(s, len(first)), s))
 
 
 def _colours(labels: list[str]) -> dict:
@@ -267,16 +271,14 @@ def _chart_errors(runs, out: Path, component: str = "glossy_indirect") -> Path |
 
 def _top_views(runs, out: Path) -> list[Path]:
     """Redraw each layout over its scene (``placement.save_top_view``) from probes.json + config.yaml."""
-    from omegaconf import OmegaConf
-
     from .._core import load_probe_set
     from ..placement import save_top_view
     from ._run import load_experiment_scene
-    from ._schema import to_config
+    from ._schema import load_config_yaml, to_config
 
     paths, scenes = [], {}
     for r in runs:
-        cfg = to_config(OmegaConf.load(r["dir"] / "config.yaml"))
+        cfg = to_config(load_config_yaml(r["dir"] / "config.yaml"))
         key = (cfg.scene.name, tuple(cfg.scene.translate_frac), cfg.scene.rotate_deg)
         if key not in scenes:
             scenes[key] = load_experiment_scene(cfg.scene)

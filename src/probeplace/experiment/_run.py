@@ -16,7 +16,6 @@ the next method in the same sweep); the ``_run_s`` figures are what the report c
 from __future__ import annotations
 
 import contextlib
-import dataclasses
 import logging
 import time
 from collections.abc import Iterator
@@ -28,7 +27,15 @@ import numpy as np
 
 from .._core import ConfigError, ProbeplaceError
 from . import _results
-from ._schema import ExperimentConfig, config_to_dict, to_config
+from ._schema import (
+    ExperimentConfig,
+    bake_config,
+    config_to_dict,
+    config_to_yaml,
+    eval_config,
+    load_config_yaml,
+    to_config,
+)
 
 log = logging.getLogger(__name__)
 
@@ -105,10 +112,10 @@ def _placer_options(cfg: ExperimentConfig, translation: np.ndarray) -> dict:
     scene, ``shift = −translation``: those lattices are anchored to the scene's bounding box and would move
     with the scene, so the shift keeps them where they were in the world and the scene really moves
     *relative to the grid* (the stability study). The skeleton methods' SDF lattice moves with the scene."""
-    from ..placement import BASELINE_METHODS
+    from ..placement import get_method
 
     opts = dict(cfg.placer.options or {})
-    if cfg.placer.method in BASELINE_METHODS and np.any(translation):
+    if get_method(cfg.placer.method).lattice and np.any(translation):
         base = np.broadcast_to(np.asarray(opts.get("shift", (0.0, 0.0, 0.0)), np.float64), (3,))
         opts["shift"] = (base - translation).tolist()
     return opts
@@ -216,38 +223,14 @@ def _tree_nbytes(tree) -> int:
 
 
 def _evaluate(scene, lf, cfg: ExperimentConfig, caster, key, out: Path) -> dict:
-    """Call ``probeplace.evaluate`` (built by issue 4); its EvalConfig gets the fields it declares."""
-    try:
-        from .. import evaluate as ev
+    """``probeplace.evaluate`` with the run's evaluation settings; writes ``eval/``, returns its metrics."""
+    from ..evaluate import evaluate, write_evaluation
 
-        evaluate, eval_config, write = ev.evaluate, ev.EvalConfig, ev.write_evaluation
-    except (ImportError, AttributeError):
-        raise EvaluationUnavailable(
-            "evaluation not available: probeplace.evaluate.evaluate is not built yet; "
-            "run with eval.enabled=false"
-        ) from None
-    wanted = {
-        "width": cfg.eval.width,
-        "height": cfg.eval.height,
-        "spp": cfg.tracer.spp,
-        "max_depth": cfg.tracer.max_depth,
-        "glossy_spp": cfg.eval.glossy_spp,
-        "glossy_ref_spp": cfg.eval.glossy_ref_spp,
-        "shading": cfg.eval.shading,
-        "timing_repeats": cfg.eval.timing_repeats,
-        "progress": cfg.progress,
-        "backend": cfg.eval.backend,
-    }
-    names = (
-        {f.name for f in dataclasses.fields(eval_config)} if dataclasses.is_dataclass(eval_config) else set()
-    )
-    if not names:  # an eqx.Module / plain class: use its annotations
-        names = set(getattr(eval_config, "__annotations__", {}))
-    config = eval_config(**{k: v for k, v in wanted.items() if k in names})
+    config = eval_config(cfg)
     result = evaluate(scene, lf, view=cfg.eval.view, config=config, caster=caster, key=key)
-    write(result, out / "eval")
+    write_evaluation(result, out / "eval")
     metrics = dict(result.metrics)
-    metrics.setdefault("backend", getattr(config, "backend", "jax"))  # who rendered the reference
+    metrics.setdefault("backend", config.backend)  # who rendered the reference
     return metrics
 
 
@@ -299,20 +282,51 @@ def run(cfg: Any, *, force: bool = False) -> RunResult:
 def _execute(cfg: ExperimentConfig, partial: Path, final: Path) -> dict:
     """Every stage of :func:`run`, writing into ``partial``; returns the metrics."""
     import jax
-    from omegaconf import OmegaConf
     from tqdm.auto import tqdm
 
-    from .._core import save_probe_set
-    from ..placement import place, save_top_view
-
-    cfg_dict = config_to_dict(cfg)
-    (partial / "config.yaml").write_text(OmegaConf.to_yaml(OmegaConf.create(cfg_dict)))
+    (partial / "config.yaml").write_text(config_to_yaml(cfg))
     _results.write_json(partial / "env.json", _results.environment())
-
-    key = jax.random.key(cfg.seed)
-    k_bake, k_eval = jax.random.split(key)
+    k_bake, k_eval = jax.random.split(jax.random.key(cfg.seed))
     timings: dict[str, float] = {}
-    metrics: dict = {
+    metrics = _run_record(cfg, final, timings)
+    stages = ["scene", "place"] + ["bake"] * cfg.bake.enabled + ["eval"] * cfg.eval.enabled
+    stages += ["export"] * bool(cfg.export.formats)
+    bar = tqdm(total=len(stages), desc=final.name, unit="stage", disable=not cfg.progress, leave=False)
+
+    def stage(name: str) -> None:
+        bar.update()
+        bar.set_postfix_str(name)
+
+    t0 = time.perf_counter()
+    scene, translation = load_experiment_scene(cfg.scene, with_translation=True)
+    timings["scene_s"] = time.perf_counter() - t0
+    _check_view(cfg, scene)
+    stage("place")
+    probes = _place_stage(cfg, scene, translation, partial, final, timings, metrics)
+    if cfg.bake.enabled:
+        stage("bake")
+        lf, caster = _bake_stage(cfg, scene, probes, k_bake, partial, timings, metrics)
+        if cfg.eval.enabled:
+            stage("eval")
+            # eval_compile_s: the whole evaluation's compilation; the shading's own is the evaluation's
+            # shading_compile_s (first run − median of repeats), its run time shading_s_per_frame
+            with _timed(timings, "eval", drjit=cfg.eval.backend == "mitsuba"):
+                metrics["eval"] = _evaluate(scene, lf, cfg, caster, k_eval, partial)
+        if cfg.export.formats:
+            stage("export")
+            metrics["exported"] = _export_stage(cfg, partial)
+    bar.update()
+    bar.close()
+    timings["place_bake_s"] = timings["place_s"] + timings.get("bake_s", 0.0)
+    timings["place_bake_run_s"] = timings["place_run_s"] + timings.get("bake_run_s", 0.0)
+    metrics["failures"] = failures(metrics)
+    _results.write_json(partial / "metrics.json", metrics)
+    return metrics
+
+
+def _run_record(cfg: ExperimentConfig, final: Path, timings: dict) -> dict:
+    """The head of ``metrics.json``: what ran (``timings`` is filled as the stages run)."""
+    return {
         "experiment": cfg.name,
         "run": final.name,
         "scene": cfg.scene.name,
@@ -325,23 +339,26 @@ def _execute(cfg: ExperimentConfig, partial: Path, final: Path) -> dict:
         "seed": cfg.seed,
         "timings": timings,
     }
-    stages = ["scene", "place"] + ["bake"] * cfg.bake.enabled + ["eval"] * cfg.eval.enabled
-    stages += ["export"] * bool(cfg.export.formats)
-    bar = tqdm(total=len(stages), desc=final.name, unit="stage", disable=not cfg.progress, leave=False)
 
-    t0 = time.perf_counter()
-    scene, translation = load_experiment_scene(cfg.scene, with_translation=True)
-    timings["scene_s"] = time.perf_counter() - t0
+
+def _check_view(cfg: ExperimentConfig, scene) -> None:
+    """Refuse an evaluation view the scene lacks before placing and baking."""
     views = [c.name for c in scene.views]
-    if cfg.eval.enabled and cfg.eval.view not in views:  # refuse before placing and baking
+    if cfg.eval.enabled and cfg.eval.view not in views:
         raise ConfigError(
             f"eval.view: scene {cfg.scene.name!r} has no view {cfg.eval.view!r}; views: {views}"
         )
-    bar.update()
 
-    bar.set_postfix_str("place")
+
+def _place_stage(cfg: ExperimentConfig, scene, translation, partial: Path, final: Path, timings, metrics):
+    """Place (timed), record the placement's figures, write ``probes.json`` and the top view."""
+    import jax
+
+    from .._core import save_probe_set
+    from ..placement import place, save_top_view
+
     with _timed(timings, "place"):
-        probes, meta = place(
+        placed = place(
             scene,
             method=cfg.placer.method,
             budget=cfg.placer.budget,
@@ -350,91 +367,77 @@ def _execute(cfg: ExperimentConfig, partial: Path, final: Path) -> dict:
             seed=cfg.seed,
             target=cfg.placer.target,
             n_opt_samples=cfg.placer.n_opt_samples,
-            **({"options": opts} if (opts := _placer_options(cfg, translation)) else {}),
+            options=_placer_options(cfg, translation),
         )
-        jax.block_until_ready(probes)
-    bar.update()
+        jax.block_until_ready(placed.probes)
+    probes = placed.probes
     active = np.asarray(probes.active)
     pos = np.asarray(probes.pos_world)[active]
     metrics.update(
         n_probes=int(active.sum()),
-        coverage=meta.get("coverage"),
-        target_reached=meta.get("target_reached"),
-        min_probe_clearance=meta.get("min_probe_clearance"),
-        converged=_converged(meta),
-        placement_timings=meta.get("timings", {}),
+        coverage=placed.coverage,
+        target_reached=placed.target_reached,
+        min_probe_clearance=placed.min_probe_clearance,
+        converged=placed.refine_converged,
+        placement_timings=placed.timings,
     )
     metrics["inside_geometry"] = _inside_sdf(scene, pos)
-    save_probe_set(partial / "probes.json", probes, units_m=scene.unit_m, metadata=_jsonable(meta))
+    save_probe_set(partial / "probes.json", probes, units_m=scene.unit_m, metadata=_jsonable(placed.metadata))
     save_top_view(scene, pos, partial / "top_view.png", title=f"{final.name}: {len(pos)} probes")
+    return probes
 
-    if cfg.bake.enabled:
-        from ..probes import BakeConfig, bake_depth_for, bake_probes, path_traced_radiance, save_probes
-        from ..render import default_caster
 
-        bar.set_postfix_str("bake")
-        caster = default_caster(scene)
-        mitsuba = cfg.bake.backend == "mitsuba"
-        with _timed(timings, "bake", drjit=mitsuba):
-            lf = bake_probes(
+def _bake_stage(cfg: ExperimentConfig, scene, probes, key, partial: Path, timings, metrics):
+    """Bake (timed) with the reference path tracer, write ``probes_baked.npz``, record the bake's
+    settings and memory; returns the baked probes and the exact caster (the evaluation's too)."""
+    import jax
+
+    from ..probes import bake_depth_for, bake_probes, path_traced_radiance, save_probes
+    from ..render import default_caster
+
+    caster = default_caster(scene)
+    mitsuba = cfg.bake.backend == "mitsuba"
+    with _timed(timings, "bake", drjit=mitsuba):
+        lf = bake_probes(
+            scene,
+            _padded(probes) if cfg.bake.pad_pow2 else probes,
+            caster=caster,  # texel-centre geometry rays and the inside test, whatever the backend
+            # one depth rule for bake, reference and evaluation: a texel replaces the rest of a camera path
+            radiance_fn=path_traced_radiance(
                 scene,
-                _padded(probes) if cfg.bake.pad_pow2 else probes,
-                caster=caster,  # texel-centre geometry rays and the inside test, whatever the backend
-                # one depth rule for bake, reference and evaluation: a texel replaces the rest of a camera
-                # path
-                radiance_fn=path_traced_radiance(
-                    scene,
-                    spp=cfg.bake.spp,
-                    max_depth=bake_depth_for(cfg.tracer.max_depth),
-                    caster=None if mitsuba else caster,  # Mitsuba casts its own rays (Embree)
-                    backend=cfg.bake.backend,
-                ),
-                key=k_bake,
-                config=BakeConfig(
-                    radiance_res=cfg.bake.radiance_res,
-                    geometry_res=cfg.bake.geometry_res,
-                    n_sub=cfg.bake.n_sub,
-                    probes_per_batch=cfg.bake.probes_per_batch,
-                    progress=cfg.progress,
-                ),
-            )
-            jax.block_until_ready(lf)
-        bar.update()
-        save_probes(partial / "probes_baked.npz", lf)
-        metrics["inside_bake"] = int((np.asarray(lf.inside) & np.asarray(lf.active)).sum())
-        # the settings stored with the probes (backend included), plus the geometry maps' resolution
-        # (interior: the stored maps carry a one-texel border)
-        metrics["bake_settings"] = {**lf.bake.to_dict(), "geometry_res": int(lf.distance.shape[-1]) - 2}
-        # as stored, for the real probes only (padding rows are not part of the method's cost)
-        per_probe = _tree_nbytes(lf) / int(lf.pos_world.shape[0])
-        metrics["memory"] = {"bytes_per_probe": per_probe, "bytes_total": per_probe * metrics["n_probes"]}
-        if cfg.eval.enabled:
-            bar.set_postfix_str("eval")
-            # eval_compile_s: the whole evaluation's compilation; the shading's own is the evaluation's
-            # shading_compile_s (first run − median of repeats), its run time shading_s_per_frame
-            with _timed(timings, "eval", drjit=cfg.eval.backend == "mitsuba"):
-                metrics["eval"] = _evaluate(scene, lf, cfg, caster, k_eval, partial)
-            bar.update()
-        if cfg.export.formats:
-            from ..export import export_probes, read_probes
+                spp=cfg.bake.spp,
+                max_depth=bake_depth_for(cfg.tracer.max_depth),
+                caster=None if mitsuba else caster,  # Mitsuba casts its own rays (Embree)
+                backend=cfg.bake.backend,
+            ),
+            key=key,
+            config=bake_config(cfg),
+        )
+        jax.block_until_ready(lf)
+    save_probes(partial / "probes_baked.npz", lf)
+    metrics["inside_bake"] = int((np.asarray(lf.inside) & np.asarray(lf.active)).sum())
+    # the settings stored with the probes (backend included), plus the geometry maps' resolution
+    # (interior: the stored maps carry a one-texel border)
+    metrics["bake_settings"] = {**lf.bake.to_dict(), "geometry_res": int(lf.distance.shape[-1]) - 2}
+    # as stored, for the real probes only (padding rows are not part of the method's cost)
+    per_probe = _tree_nbytes(lf) / int(lf.pos_world.shape[0])
+    metrics["memory"] = {"bytes_per_probe": per_probe, "bytes_total": per_probe * metrics["n_probes"]}
+    return lf, caster
 
-            bar.set_postfix_str("export")
-            data = read_probes(partial / "probes_baked.npz")
-            (partial / "export").mkdir()
-            files = []
-            for fmt in cfg.export.formats:
-                files += [
-                    str(p.relative_to(partial))
-                    for p in export_probes(data, fmt, partial / "export" / f"probes.{fmt}")
-                ]
-            metrics["exported"] = files
-            bar.update()
-    bar.close()
-    timings["place_bake_s"] = timings["place_s"] + timings.get("bake_s", 0.0)
-    timings["place_bake_run_s"] = timings["place_run_s"] + timings.get("bake_run_s", 0.0)
-    metrics["failures"] = failures(metrics)
-    _results.write_json(partial / "metrics.json", metrics)
-    return metrics
+
+def _export_stage(cfg: ExperimentConfig, partial: Path) -> list[str]:
+    """Engine exports of the baked probes under ``export/``; their paths relative to the run folder."""
+    from ..export import export_probes, read_probes
+
+    data = read_probes(partial / "probes_baked.npz")
+    (partial / "export").mkdir()
+    files = []
+    for fmt in cfg.export.formats:
+        files += [
+            str(p.relative_to(partial))
+            for p in export_probes(data, fmt, partial / "export" / f"probes.{fmt}")
+        ]
+    return files
 
 
 # Keys that do not change a run's results: a finished run with other values here is still the same run.
@@ -443,11 +446,15 @@ _NOT_RESULTS = ("progress", "results_dir")
 
 def _check_same_config(cfg: ExperimentConfig, final: Path) -> None:
     """A finished run is only skipped when it ran with this config; otherwise refuse naming the keys."""
-    from omegaconf import OmegaConf
-
-    old = _flat(OmegaConf.to_container(OmegaConf.load(final / "config.yaml")))
+    old = _flat(load_config_yaml(final / "config.yaml"))
     new = _flat(config_to_dict(cfg))
-    diff = sorted(k for k in old.keys() | new.keys() if k not in _NOT_RESULTS and old.get(k) != new.get(k))
+    # a key the finished run's config lacks came into the schema later: that run had its default
+    default = _flat(config_to_dict(ExperimentConfig()))
+    diff = sorted(
+        k
+        for k in old.keys() | new.keys()
+        if k not in _NOT_RESULTS and old.get(k, default.get(k)) != new.get(k)
+    )
     if diff:
         raise ConfigError(
             f"{final} is a finished run with a different config ({', '.join(diff)} differ); "
@@ -491,12 +498,6 @@ def _flat(d: dict, prefix: str = "") -> dict:
         else:
             out[f"{prefix}{k}"] = v
     return out
-
-
-def _converged(meta: dict) -> bool | None:
-    """Whether the refiner converged (``placement.place``'s ``refine_converged``; ``None``: no refiner)."""
-    c = meta.get("refine_converged")
-    return None if c is None else bool(c)
 
 
 def unresolved_share(ev: dict) -> float | None:

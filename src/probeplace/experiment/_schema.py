@@ -1,25 +1,33 @@
-"""Experiment configuration: one dataclass per Hydra config group, validated with messages naming the key.
+"""Experiment configuration: one dataclass per config group, validated with messages naming the key.
 
 The groups (``scene``, ``placer``, ``refiner``, ``bake``, ``tracer``, ``eval``, ``export``) are fields of
-:class:`ExperimentConfig`; ``register_configs`` stores the schema in Hydra's ConfigStore as ``base_config``
-so that every YAML file under ``configs/`` is merged onto a typed, struct-mode node (unknown keys and wrong
-types are rejected by OmegaConf before a run starts). :func:`to_config` does the same for plain dicts, so
-tests and notebooks get the same checks without Hydra.
+:class:`ExperimentConfig`. The ``bake`` and ``eval`` groups are *built from* the library's own settings
+(``probes.BakeConfig``, ``evaluate.EvalConfig``): every scalar field of those is a key of the group, with
+the library's type, default and checks, plus the few keys only the runner has (``enabled``, ``view``,
+the bake's ``spp`` / ``pad_pow2`` / ``backend``). :func:`validate` builds the library configs from a run's
+config, so their checks run once, in the library, before any work; their messages are re-keyed to the
+config key (``bake.radiance_res: ...``).
+
+Neither Hydra nor OmegaConf is imported here: :func:`to_config` turns any mapping (an OmegaConf node is
+one) into the typed config itself (``_typed``); ``experiments/run.py`` registers :class:`ExperimentConfig`
+in Hydra's ConfigStore.
 """
 
 from __future__ import annotations
 
 import dataclasses
+import re
+import types
+import typing
+from collections.abc import Mapping
 from dataclasses import dataclass, field
 from typing import Any
 
 from .._core import ConfigError
-
-#: Placement methods the experiment runner knows. ``grid``, ``lod-grid`` and ``vardis`` are placement
-#: methods of ``placement.place`` (issue 6); the runner passes the name through.
-PLACERS = ("grid", "lod-grid", "skeleton", "medial", "skeleton+medial", "vardis")
-OBJECTIVES = ("coverage", "wang")
-SHADINGS = ("lightfield", "irradiance", "sh")
+from ..evaluate import EvalConfig as _LibEvalConfig
+from ..probes import BakeConfig as _LibBakeConfig
+from ..render import RenderConfig as _LibRenderConfig
+from ._typed import from_mapping
 
 
 @dataclass
@@ -42,13 +50,13 @@ class PlacerConfig:
     """Probe placement (``placement.place``).
 
     Attributes:
-        method: one of :data:`PLACERS`.
+        method: a registered placement method (``placement.METHODS``).
         budget: ``"auto"`` (fewest probes reaching ``target`` coverage) or a positive probe count.
         objective: refiner objective, ``coverage`` or ``wang``.
         target: coverage target of the automatic budget, in (0, 1].
         n_opt_samples: surface samples of the refiner's problem.
-        options: baseline options of ``grid`` / ``lod-grid`` / ``vardis`` (``placement.place``'s
-            ``options``, e.g. ``{jitter: 0.5}`` for the grid); empty for the other methods.
+        options: the method's options (``placement.place``'s ``options``, e.g. ``{jitter: 0.5}`` for the
+            grid); empty for methods without options.
     """
 
     method: str = "skeleton"
@@ -66,41 +74,65 @@ class RefinerConfig:
     name: str = "none"
 
 
-@dataclass
-class BakeConfig:
+_SCALARS = (bool, int, float, str)
+
+
+def _is_scalar(tp: Any) -> bool:
+    """A type a config key may have: a scalar or ``scalar | None`` (nested settings stay library-only)."""
+    if tp in _SCALARS:
+        return True
+    args = [a for a in typing.get_args(tp) if a is not type(None)]
+    return typing.get_origin(tp) in (typing.Union, types.UnionType) and len(args) == 1 and args[0] in _SCALARS
+
+
+def _stage_schema(name: str, doc: str, lib: type, *, head: list, tail: list, runner_set: set, defaults: dict):
+    """The config group of a library settings dataclass ``lib``: ``head``, then every scalar field of
+    ``lib`` not set by the runner itself (``runner_set``), with ``lib``'s type and default (or
+    ``defaults``'), then ``tail``. A field added to ``lib`` becomes a key of the group without an edit here.
+    """
+    hints = typing.get_type_hints(lib)
+    own = [
+        (f.name, hints[f.name], field(default=defaults.get(f.name, f.default)))
+        for f in dataclasses.fields(lib)
+        if f.name not in runner_set and _is_scalar(hints[f.name])
+    ]
+    cls = dataclasses.make_dataclass(name, [*head, *own, *tail])
+    # make_dataclass would name the module ``types`` (Python 3.11): pickling (joblib / Ray launchers) finds
+    # the class by its module
+    cls.__module__, cls.__doc__ = __name__, doc
+    return cls
+
+
+BakeStage = _stage_schema(
+    "BakeStage",
     """Light-field probe bake with the reference path tracer (``probes.bake_probes``).
+
+    Every scalar field of ``probes.BakeConfig`` but ``progress`` (the run's ``progress``) is a key, with its
+    meaning and checks; ``radiance_res`` defaults to 16 and ``probes_per_batch`` to 4 here. The runner's own:
 
     Attributes:
         enabled: bake at all (the stability study only needs placements).
-        radiance_res: octahedral interior resolution (power of two).
-        spp: paths per bake ray; ``n_sub``² jittered rays per texel.
-        n_sub: jittered rays per texel per axis.
-        probes_per_batch: probes traced at once (memory).
-        pad_pow2: pad the baked set with inactive probes to a power-of-two capacity (8 to 64; beyond,
-            a multiple of 64), so
-            the runs of a sweep share compiled bake / shading code; inactive probes are masked out, the
-            results do not change.
-        geometry_res: interior resolution of the geometry maps (distance, normal, back-face, distance
-            MIPs; a power of two >= 2); ``None`` (default): ``radiance_res``
-            (``probes.BakeConfig.geometry_res``: one exact ray per texel, no path tracing).
-        backend: who path-traces the bake's radiance: ``"jax"`` (default; the GPU and differentiable
-            path) or ``"mitsuba"`` (the same estimator compiled by Mitsuba 3's ``llvm_ad_rgb`` variant,
-            several times faster on a CPU; ``probes.path_traced_radiance(backend=...)``). The texel-centre
-            geometry rays and the inside test use the exact caster either way. A run refuses
+        spp: paths per bake ray (``probes.path_traced_radiance``; checked as ``render.RenderConfig.spp``).
+        pad_pow2: pad the baked set with inactive probes to a power-of-two capacity (8 to 64; beyond, a
+            multiple of 64), so the runs of a sweep share compiled bake / shading code; inactive probes are
+            masked out, the results do not change.
+        backend: who path-traces the bake's radiance: ``"jax"`` (default) or ``"mitsuba"`` (Mitsuba 3's
+            ``llvm_ad_rgb`` variant; ``probes.path_traced_radiance(backend=...)``). A run refuses
             ``"mitsuba"`` before placing when Mitsuba or its LLVM variant cannot load.
 
     The bake's path depth is not a setting of its own: it is ``tracer.max_depth − 1``
     (``probes.bake_depth_for``), so the probes always match the reference they are compared with.
-    """
-
-    enabled: bool = True
-    radiance_res: int = 16
-    spp: int = 4
-    n_sub: int = 2
-    probes_per_batch: int = 4
-    pad_pow2: bool = True
-    geometry_res: int | None = None
-    backend: str = "jax"
+    """,
+    _LibBakeConfig,
+    head=[("enabled", bool, field(default=True))],
+    tail=[
+        ("spp", int, field(default=4)),
+        ("pad_pow2", bool, field(default=True)),
+        ("backend", str, field(default="jax")),
+    ],
+    runner_set={"progress"},
+    defaults={"radiance_res": 16, "probes_per_batch": 4},
+)
 
 
 @dataclass
@@ -108,8 +140,8 @@ class TracerConfig:
     """The reference path tracer of the evaluation (reference image and common random numbers).
 
     Attributes:
-        spp: paths per pixel.
-        max_depth: camera path depth in segments (reference render and evaluation); the bake traces
+        spp: paths per pixel (``evaluate.EvalConfig.spp``).
+        max_depth: camera path depth in segments (``evaluate.EvalConfig.max_depth``); the bake traces
             ``max_depth − 1`` segments from each probe (``probes.bake_depth_for``).
     """
 
@@ -117,35 +149,27 @@ class TracerConfig:
     max_depth: int = 4
 
 
-@dataclass
-class EvalConfig:
+EvalStage = _stage_schema(
+    "EvalStage",
     """Evaluation against the path-traced reference (``probeplace.evaluate``).
+
+    Every scalar field of ``evaluate.EvalConfig`` is a key, with its meaning and checks, but those the
+    runner sets: ``spp`` and ``max_depth`` (the ``tracer`` group), ``progress`` (the run's) and ``seed``
+    (the run's key). The runner's own:
 
     Attributes:
         enabled: evaluate at all.
         view: camera name of the scene.
-        width: image width in pixels.
-        height: image height in pixels.
-        glossy_spp: primary samples per pixel of the probe image (one GGX direction each, common
-            random numbers with the reference).
-        glossy_ref_spp: reference paths per GGX direction (>= 2, for its variance).
-        shading: diffuse shading from the probes: ``lightfield``, ``irradiance`` or ``sh``.
-        timing_repeats: shading repeats timed (median) after the compile run.
-        backend: who path-traces the reference render and the CRN glossy reference: ``"jax"`` (default)
-            or ``"mitsuba"`` (``evaluate.EvalConfig.backend``; refused before placing when Mitsuba or its
-            LLVM variant cannot load). The tracer's settings (``tracer.spp``, ``tracer.max_depth``) hold
-            for either backend.
-    """
-
-    enabled: bool = True
-    view: str = "front"
-    width: int = 64
-    height: int = 64
-    glossy_spp: int = 8
-    glossy_ref_spp: int = 4
-    shading: str = "lightfield"
-    timing_repeats: int = 3
-    backend: str = "jax"
+    """,
+    _LibEvalConfig,
+    head=[("enabled", bool, field(default=True)), ("view", str, field(default="front"))],
+    tail=[],
+    runner_set={"spp", "max_depth", "progress", "seed"},
+    defaults={},
+)
+# The names of the groups before they were built from the library settings.
+BakeConfig = BakeStage
+EvalConfig = EvalStage
 
 
 @dataclass
@@ -176,31 +200,59 @@ class ExperimentConfig:
     scene: SceneConfig = field(default_factory=SceneConfig)
     placer: PlacerConfig = field(default_factory=PlacerConfig)
     refiner: RefinerConfig = field(default_factory=RefinerConfig)
-    bake: BakeConfig = field(default_factory=BakeConfig)
+    bake: BakeStage = field(default_factory=BakeStage)
     tracer: TracerConfig = field(default_factory=TracerConfig)
-    eval: EvalConfig = field(default_factory=EvalConfig)
+    eval: EvalStage = field(default_factory=EvalStage)
     export: ExportConfig = field(default_factory=ExportConfig)
+
+
+def _library_values(stage: Any, lib: type) -> dict:
+    names = {f.name for f in dataclasses.fields(lib)}
+    return {k: v for k, v in dataclasses.asdict(stage).items() if k in names}
+
+
+def _rekeyed(lib: type, values: dict, keys: dict[str, str]) -> Any:
+    """``lib(**values)``; its ConfigError (``BakeConfig.n_sub must be ...`` or ``budget must be ...``)
+    re-keyed to the config key (``bake.n_sub: must be ...``), with ASCII comparisons as the runner's
+    messages always had."""
+    try:
+        return lib(**values)
+    except ConfigError as e:
+        m = re.match(rf"(?:{lib.__name__}\.)?(\w+):? (.*)", str(e), re.S)
+        if m is None or m.group(1) not in keys:
+            raise
+        rest = m.group(2) if m.group(2).startswith("must") else str(e)
+        raise ConfigError(f"{keys[m.group(1)]}: {rest.replace('≥', '>=')}") from None
+
+
+def bake_config(cfg: ExperimentConfig) -> _LibBakeConfig:
+    """The library's bake settings of a run (``probes.BakeConfig``)."""
+    values = {**_library_values(cfg.bake, _LibBakeConfig), "progress": cfg.progress}
+    return _rekeyed(_LibBakeConfig, values, {k: f"bake.{k}" for k in values})
+
+
+def eval_config(cfg: ExperimentConfig) -> _LibEvalConfig:
+    """The library's evaluation settings of a run (``evaluate.EvalConfig``): the ``eval`` group, the
+    tracer's samples and depth, the run's ``progress``."""
+    values = {
+        **_library_values(cfg.eval, _LibEvalConfig),
+        "spp": cfg.tracer.spp,
+        "max_depth": cfg.tracer.max_depth,
+        "progress": cfg.progress,
+    }
+    keys = {**{k: f"eval.{k}" for k in values}, "spp": "tracer.spp", "max_depth": "tracer.max_depth"}
+    return _rekeyed(_LibEvalConfig, values, keys)
+
+
+def _check_bake_tracer(cfg: ExperimentConfig) -> None:
+    """The bake's path tracer settings, checked where the renderer checks them (``RenderConfig``; the
+    image size is a placeholder, a bake has none)."""
+    values = {"width": 1, "height": 1, "spp": cfg.bake.spp, "backend": cfg.bake.backend}
+    _rekeyed(_LibRenderConfig, values, {"spp": "bake.spp", "backend": "bake.backend"})
 
 
 def _fail(key: str, what: str, got) -> None:
     raise ConfigError(f"{key}: {what}, got {got!r}")
-
-
-def _pos_int(key: str, v) -> None:
-    if isinstance(v, bool) or not isinstance(v, int) or v < 1:
-        _fail(key, "must be a positive integer", v)
-
-
-def _pow2(key: str, v) -> None:
-    if isinstance(v, bool) or not isinstance(v, int) or v < 2 or v & (v - 1):
-        _fail(key, "must be a power of two >= 2", v)
-
-
-def _backend(key: str, v) -> None:
-    from ..render import BACKENDS
-
-    if v not in BACKENDS:
-        _fail(key, f"must be one of {BACKENDS}", v)
 
 
 def _name(key: str, v) -> None:
@@ -208,10 +260,7 @@ def _name(key: str, v) -> None:
         _fail(key, "must be a non-empty name without '/' or a leading '.'", v)
 
 
-def validate(cfg: ExperimentConfig) -> ExperimentConfig:
-    """Check every value of ``cfg``; raise :class:`ConfigError` naming the first bad key."""
-    from ..placement import REFINERS
-
+def _check_run(cfg: ExperimentConfig) -> None:
     _name("name", cfg.name)
     if cfg.run:
         _name("run", cfg.run)
@@ -224,98 +273,78 @@ def validate(cfg: ExperimentConfig) -> ExperimentConfig:
         _fail("scene.translate_frac", "must be three numbers in [-0.5, 0.5]", t)
     if not -180.0 <= float(cfg.scene.rotate_deg) <= 180.0:
         _fail("scene.rotate_deg", "must be in [-180, 180]", cfg.scene.rotate_deg)
-    p = cfg.placer
-    if p.method not in PLACERS:
-        _fail("placer.method", f"must be one of {PLACERS}", p.method)
-    if p.budget != "auto" and (isinstance(p.budget, bool) or not isinstance(p.budget, int) or p.budget < 1):
-        _fail("placer.budget", "must be 'auto' or a positive integer", p.budget)
-    if p.objective not in OBJECTIVES:
-        _fail("placer.objective", f"must be one of {OBJECTIVES}", p.objective)
-    if not 0.0 < float(p.target) <= 1.0:
-        _fail("placer.target", "must be in (0, 1]", p.target)
-    _pos_int("placer.n_opt_samples", p.n_opt_samples)
-    if p.options:
-        from ..placement._place import BASELINE_OPTIONS
 
-        known = BASELINE_OPTIONS.get(p.method, {})
-        for k in p.options:
-            if k not in known:
-                _fail(
-                    f"placer.options.{k}",
-                    f"not an option of {p.method!r}; known: {sorted(known)}",
-                    p.options[k],
-                )
-    if cfg.refiner.name != "none" and cfg.refiner.name not in REFINERS:
-        _fail("refiner.name", f"must be 'none' or one of {REFINERS}", cfg.refiner.name)
-    b = cfg.bake
-    _pow2("bake.radiance_res", b.radiance_res)
-    if b.geometry_res is not None:
-        _pow2("bake.geometry_res", b.geometry_res)
-    for k in ("spp", "n_sub", "probes_per_batch"):
-        _pos_int(f"bake.{k}", getattr(b, k))
-    _backend("bake.backend", b.backend)
-    _pos_int("tracer.spp", cfg.tracer.spp)
-    if (
-        isinstance(cfg.tracer.max_depth, bool)
-        or not isinstance(cfg.tracer.max_depth, int)
-        or cfg.tracer.max_depth < 3
-    ):
-        _fail(
-            "tracer.max_depth",
-            "must be an integer >= 3 (indirect light needs two bounces)",
-            cfg.tracer.max_depth,
-        )
-    for k in ("width", "height", "glossy_spp", "timing_repeats"):
-        _pos_int(f"eval.{k}", getattr(cfg.eval, k))
-    if (
-        isinstance(cfg.eval.glossy_ref_spp, bool)
-        or not isinstance(cfg.eval.glossy_ref_spp, int)
-        or cfg.eval.glossy_ref_spp < 2
-    ):
-        _fail("eval.glossy_ref_spp", "must be an integer >= 2", cfg.eval.glossy_ref_spp)
-    if cfg.eval.shading not in SHADINGS:
-        _fail("eval.shading", f"must be one of {SHADINGS}", cfg.eval.shading)
-    _backend("eval.backend", cfg.eval.backend)
-    if cfg.eval.enabled and not cfg.bake.enabled:
-        _fail("eval.enabled", "needs baked probes (bake.enabled=true)", cfg.eval.enabled)
+
+def _check_placer(cfg: ExperimentConfig) -> None:
+    """The placement settings, checked where ``place`` checks them (``placement.PlaceRequest``)."""
+    from ..placement import PlaceRequest, method_names, method_options
+
+    p = cfg.placer
+    if p.method not in method_names():
+        _fail("placer.method", f"must be one of {method_names()}", p.method)
+    values = {
+        "budget": p.budget,
+        "refiner": None if cfg.refiner.name == "none" else cfg.refiner.name,
+        "objective": p.objective,
+        "target": p.target,
+        "n_opt_samples": p.n_opt_samples,
+    }
+    keys = {**{k: f"placer.{k}" for k in values}, "refiner": "refiner.name"}
+    _rekeyed(PlaceRequest, values, keys)
+    known = method_options(p.method)
+    for k in p.options or {}:
+        if k not in known:
+            _fail(
+                f"placer.options.{k}", f"not an option of {p.method!r}; known: {sorted(known)}", p.options[k]
+            )
+
+
+def _check_outputs(cfg: ExperimentConfig) -> None:
     from ..export._registry import FORMATS
 
+    if cfg.eval.enabled and not cfg.bake.enabled:
+        _fail("eval.enabled", "needs baked probes (bake.enabled=true)", cfg.eval.enabled)
     for i, f in enumerate(cfg.export.formats):
         if f not in FORMATS:
             _fail(f"export.formats[{i}]", f"must be one of {sorted(FORMATS)}", f)
     if cfg.export.formats and not cfg.bake.enabled:
         _fail("export.formats", "needs baked probes (bake.enabled=true)", list(cfg.export.formats))
+
+
+def validate(cfg: ExperimentConfig) -> ExperimentConfig:
+    """Check every value of ``cfg``; raise :class:`ConfigError` naming the first bad key. The bake and
+    evaluation settings are checked by building the library's configs (also for a disabled stage: a bad
+    value is refused whether or not it is used)."""
+    _check_run(cfg)
+    _check_placer(cfg)
+    bake_config(cfg)
+    _check_bake_tracer(cfg)
+    eval_config(cfg)
+    _check_outputs(cfg)
     return cfg
 
 
 def to_config(cfg: Any) -> ExperimentConfig:
-    """An :class:`ExperimentConfig` from a dataclass, dict or OmegaConf node, checked against the schema
-    (unknown keys, wrong types) and validated. Errors are :class:`ConfigError` naming the key."""
-    from omegaconf import OmegaConf
-    from omegaconf.errors import OmegaConfBaseException
-
+    """An :class:`ExperimentConfig` from a dataclass or any mapping (a dict, an OmegaConf node), checked
+    against the schema (unknown keys, wrong types) and validated. Errors are :class:`ConfigError` naming the
+    key. A ``hydra`` key (Hydra's own node, when composed with it) is ignored."""
     if isinstance(cfg, ExperimentConfig):
         return validate(cfg)
-    try:
-        base = OmegaConf.structured(ExperimentConfig)  # dataclass nodes refuse unknown keys
-        node = OmegaConf.create(cfg) if isinstance(cfg, dict) else cfg
-        stale = OmegaConf.select(node, "bake.max_depth") if OmegaConf.is_config(node) else None
-        if stale is not None:
-            raise ConfigError(
-                f"bake.max_depth={stale}: the bake's path depth is no longer "
-                "a setting, it is tracer.max_depth − 1 (probes.bake_depth_for); remove bake.max_depth and "
-                "set tracer.max_depth (a run folder written with it was baked at its own depth: re-run it)"
-            )
-        if OmegaConf.is_config(node) and "hydra" in node:
-            node = OmegaConf.masked_copy(node, [k for k in node if k != "hydra"])
-        merged = OmegaConf.merge(base, node)
-        obj = OmegaConf.to_object(merged)
-    except OmegaConfBaseException as e:
-        key = getattr(e, "full_key", None) or "config"
-        msg = str(e).splitlines()[0]
-        raise ConfigError(f"{key}: {msg}") from None
-    assert isinstance(obj, ExperimentConfig)
-    return validate(obj)
+    if isinstance(cfg, Mapping):
+        _refuse_stale_keys(cfg)
+        cfg = {k: cfg[k] for k in cfg if k != "hydra"}  # never read Hydra's node
+    return validate(from_mapping(ExperimentConfig, cfg))
+
+
+def _refuse_stale_keys(cfg: Mapping) -> None:
+    bake = cfg.get("bake")
+    stale = bake.get("max_depth") if isinstance(bake, Mapping) else None
+    if stale is not None:
+        raise ConfigError(
+            f"bake.max_depth={stale}: the bake's path depth is no longer "
+            "a setting, it is tracer.max_depth − 1 (probes.bake_depth_for); remove bake.max_depth and "
+            "set tracer.max_depth (a run folder written with it was baked at its own depth: re-run it)"
+        )
 
 
 def config_to_dict(cfg: ExperimentConfig) -> dict:
@@ -323,8 +352,17 @@ def config_to_dict(cfg: ExperimentConfig) -> dict:
     return dataclasses.asdict(cfg)
 
 
-def register_configs() -> None:
-    """Store the schema in Hydra's ConfigStore as ``base_config`` (configs/config.yaml lists it first)."""
-    from hydra.core.config_store import ConfigStore
+def config_to_yaml(cfg: ExperimentConfig) -> str:
+    """The config as YAML, keys in schema order (a run folder's ``config.yaml``)."""
+    import yaml
 
-    ConfigStore.instance().store(name="base_config", node=ExperimentConfig)
+    return yaml.safe_dump(config_to_dict(cfg), sort_keys=False, allow_unicode=True, default_flow_style=False)
+
+
+def load_config_yaml(path) -> dict:
+    """A ``config.yaml`` as a plain dict (pass it to :func:`to_config` for the typed config)."""
+    from pathlib import Path
+
+    import yaml
+
+    return yaml.safe_load(Path(path).read_text()) or {}

@@ -1,5 +1,6 @@
 """Geometry: exact ray casting (Embree, JAX BVH, brute force), the SDF grid, surface samples."""
 
+from ._raycast import AbstractJaxRayCaster as AbstractJaxRayCaster
 from ._raycast import AbstractRayCaster as AbstractRayCaster
 from ._raycast import BruteForceCaster as BruteForceCaster
 from ._raycast import complete_hit as complete_hit
@@ -22,6 +23,7 @@ from ._visibility import soft_visibility as soft_visibility
 # --- exact ray casting backends ---
 # isort: split
 from ._casters import BRUTE_FORCE_MAX_TRIANGLES as BRUTE_FORCE_MAX_TRIANGLES
+from ._casters import USES as USES
 from ._casters import BVHCaster as BVHCaster
 from ._casters import make_caster as make_caster
 from ._embree import EmbreeCaster as EmbreeCaster

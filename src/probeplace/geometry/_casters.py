@@ -26,14 +26,16 @@ from .._core import ConfigError, Hit, Scene
 from ._bvh_build import ThreadedBVH, build_bvh, pack_boxes, pack_items, pack_triangles, thread_bvh
 from ._bvh_traverse import traverse
 from ._embree import EmbreeCaster, EmbreeUnavailableError
-from ._raycast import AbstractRayCaster, BruteForceCaster, complete_hit
+from ._raycast import AbstractJaxRayCaster, AbstractRayCaster, BruteForceCaster, complete_hit
 
 log = logging.getLogger(__name__)
 
 SCHEDULES = ("deferred", "fused")
 BACKENDS = ("auto", "embree", "bvh", "brute")
-# "auto" with jittable=True: brute force up to this many triangles (it beats the BVH there: no traversal
-# overhead, one fused loop over the triangles), the BVH above.
+#: What the caller does with a caster; decides ``make_caster``'s "auto" choice.
+USES = ("host", "jit", "render")
+# "auto" for use="jit" or "render": brute force up to this many triangles (it beats the BVH there: no
+# traversal overhead, one fused loop over the triangles), the BVH or Embree above.
 BRUTE_FORCE_MAX_TRIANGLES = 256
 
 
@@ -43,7 +45,7 @@ def _default_lanes() -> int:
     return 2048 if jax.default_backend() == "cpu" else 131072
 
 
-class BVHCaster(AbstractRayCaster):
+class BVHCaster(AbstractJaxRayCaster):
     """Exact ray casting through a BVH traversed in JAX: jittable, runs on CPU or GPU, not differentiable.
 
     Build (NumPy, once per scene): binned-SAH binary BVH with one triangle per leaf (Wald 2007), threaded
@@ -171,34 +173,40 @@ class BVHCaster(AbstractRayCaster):
         return tri >= 0
 
 
-def make_caster(
-    scene: Scene, backend: str = "auto", *, jittable: bool = False, **options
-) -> AbstractRayCaster:
-    """A ray caster for ``scene``.
+def make_caster(scene: Scene, backend: str = "auto", *, use: str = "host", **options) -> AbstractRayCaster:
+    """A ray caster for ``scene``: the one place a backend is chosen.
 
-    ``backend="auto"`` picks:
+    ``backend="auto"`` picks by what the caller will do with the caster (``use``):
 
-    * ``jittable=False`` (host code, e.g. baking or reference renders driven from Python): Embree when
-      embreex imports — the fastest exact caster on CPU — else the JAX BVH.
-    * ``jittable=True`` (the caster is called inside ``jax.jit``/``vmap``, or must run on a GPU): brute
-      force for tiny scenes (≤ ``BRUTE_FORCE_MAX_TRIANGLES`` triangles), else the JAX BVH.
+    * ``"host"`` (default; the caller drives it from Python with concrete arrays: baking, exact
+      G-buffers, occlusion rays of the placement): Embree when embreex imports — the fastest exact caster
+      on CPU — else the JAX BVH (with a warning).
+    * ``"jit"`` (the caster is traced inside ``jax.jit``/``vmap``, or must run on a GPU): brute force for
+      tiny scenes (≤ ``BRUTE_FORCE_MAX_TRIANGLES`` triangles), else the JAX BVH.
+    * ``"render"`` (the path tracer and the evaluation's primary hits, which take either kind): brute
+      force for tiny scenes, as for ``"jit"`` (the whole bounce loop then compiles into one function,
+      faster there than Embree's host loop), else as for ``"host"``.
 
     Args:
         scene: the scene.
         backend: ``"auto"``, ``"embree"``, ``"bvh"`` or ``"brute"``.
-        jittable: whether the caster must work under ``jax.jit`` (only used by ``"auto"``).
+        use: ``"host"``, ``"jit"`` or ``"render"`` (above); only ``"jit"`` restricts an explicit backend.
         **options: passed to the chosen caster's constructor (e.g. ``threads`` for Embree,
             ``schedule``/``lanes`` for the BVH, ``chunk`` for brute force).
 
     Raises:
-        ConfigError: unknown backend; or ``"embree"`` asked for together with ``jittable=True``.
+        ConfigError: unknown backend or use; or ``"embree"`` asked for together with ``use="jit"``.
         EmbreeUnavailableError: ``"embree"`` asked for and embreex is not installed.
     """
     if backend not in BACKENDS:
         raise ConfigError(f"unknown ray-casting backend {backend!r}; choose one of {BACKENDS}")
+    if use not in USES:
+        raise ConfigError(f"unknown caster use {use!r}; choose one of {USES}")
     if backend == "auto":
-        if jittable:
-            backend = "brute" if scene.n_triangles <= BRUTE_FORCE_MAX_TRIANGLES else "bvh"
+        if use != "host" and scene.n_triangles <= BRUTE_FORCE_MAX_TRIANGLES:
+            backend = "brute"
+        elif use == "jit":
+            backend = "bvh"
         else:
             try:
                 return EmbreeCaster(scene, **options)
@@ -206,7 +214,7 @@ def make_caster(
                 log.warning("embreex is not available; using the JAX BVH caster on the host")
                 backend = "bvh"
     if backend == "embree":
-        if jittable:
+        if use == "jit":
             raise ConfigError("the 'embree' backend is host code and cannot be jitted; use 'bvh' or 'brute'")
         return EmbreeCaster(scene, **options)
     if backend == "bvh":

@@ -11,6 +11,7 @@ from __future__ import annotations
 import itertools
 import os
 from concurrent.futures import ThreadPoolExecutor
+from typing import ClassVar
 
 import equinox as eqx
 import jax.numpy as jnp
@@ -69,6 +70,8 @@ class EmbreeCaster(AbstractRayCaster):
     Raises:
         EmbreeUnavailableError: embreex is not installed.
     """
+
+    jittable: ClassVar[bool] = False  # numpy → Embree → numpy: concrete arrays only
 
     scene: Scene
     handle: _EmbreeHandle = eqx.field(static=True)
@@ -138,6 +141,6 @@ class EmbreeCaster(AbstractRayCaster):
         return jnp.asarray(self.occluded_host(origins, directions, t_max))
 
     def occluded_host(self, origins, directions, t_max) -> np.ndarray:
-        """:meth:`occluded` as a host (numpy) boolean array: no device round trip for host callers."""
+        """:meth:`occluded` as a host (NumPy) boolean array: no device round trip for host callers."""
         ids = self._run(origins, directions, t_max, "OCCLUDED")
         return np.asarray(ids != -1)

@@ -10,9 +10,9 @@ distance in scene units. Hits with ``t <= t_min`` are ignored (``t_min`` default
 secondary-ray origins themselves).
 """
 
-from __future__ import annotations
-
+# No ``from __future__ import annotations`` here: equinox cannot read a stringified AbstractClassVar.
 import abc
+from typing import ClassVar
 
 import equinox as eqx
 import jax
@@ -24,7 +24,18 @@ from .._core import Hit, Scene, safe_normalize
 
 
 class AbstractRayCaster(eqx.Module):
-    """Closest-hit and any-hit queries for batches of rays against one scene's triangles."""
+    """Closest-hit and any-hit queries for batches of rays against one scene's triangles.
+
+    Every caster states what it can do, so callers read it instead of guessing from the type:
+
+    * ``jittable`` (class attribute): whether its queries can be traced inside ``jax.jit``/``vmap`` (the
+      JAX casters) or must be called from the host with concrete arrays (Embree). The path tracer runs
+      its whole bounce loop in one jitted function for a jittable caster and a host loop otherwise.
+    * :meth:`occluded_host`: the any-hit query from and to host (NumPy) arrays, for host-driven callers
+      such as the placement's binary visibility; Embree answers it without a device round trip.
+    """
+
+    jittable: eqx.AbstractClassVar[bool]
 
     @abc.abstractmethod
     def closest_hit(
@@ -43,6 +54,26 @@ class AbstractRayCaster(eqx.Module):
         t_max: Float[Array, " n_rays"] | float,
     ) -> Bool[Array, " n_rays"]:
         """True where any triangle is hit with ``0 < t < t_max`` (shadow rays)."""
+
+    @abc.abstractmethod
+    def occluded_host(self, origins, directions, t_max) -> np.ndarray:
+        """:meth:`occluded` for host callers: NumPy (or any array) inputs, a NumPy boolean array out."""
+
+
+class AbstractJaxRayCaster(AbstractRayCaster):
+    """A caster whose queries are JAX code: jittable, and its host query is the jitted one converted.
+
+    Each new batch size of :meth:`occluded_host` compiles :meth:`occluded` once more; callers that cast
+    many batches pad them to a few sizes (as ``placement.binary_visibility`` does).
+    """
+
+    jittable: ClassVar[bool] = True
+
+    def occluded_host(self, origins, directions, t_max) -> np.ndarray:
+        """:meth:`occluded` as a host (NumPy) boolean array, computed by the jitted query."""
+        o = jnp.asarray(origins)
+        tm = jnp.asarray(t_max, o.dtype)
+        return np.asarray(self.occluded(o, jnp.asarray(directions, o.dtype), tm))
 
 
 def complete_hit(
@@ -102,7 +133,7 @@ def intersect_triangles(
     return jnp.where(valid, t, jnp.inf), u, v
 
 
-class BruteForceCaster(AbstractRayCaster):
+class BruteForceCaster(AbstractJaxRayCaster):
     """Every ray against every triangle, in JAX. The fastest exact choice for tiny scenes (tens of
     triangles: no traversal overhead, perfectly vectorised); quadratic, so refuse large scenes.
 

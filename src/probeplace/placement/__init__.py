@@ -17,11 +17,10 @@ from ._fitness import wang_fitness_binary as wang_fitness_binary
 from ._fitness import witness_positions as witness_positions
 from ._grid import grid_dims as grid_dims
 from ._grid import uniform_grid as uniform_grid
-from ._place import BASELINE_METHODS as BASELINE_METHODS
-from ._place import METHODS as METHODS
 from ._place import place as place
 from ._place import save_top_view as save_top_view
 from ._place import smallest_full_grid as smallest_full_grid
+from ._refine import OBJECTIVES as OBJECTIVES
 from ._refine import REFINERS as REFINERS
 from ._refine import AbstractRefiner as AbstractRefiner
 from ._refine import GibbsRefiner as GibbsRefiner
@@ -29,12 +28,23 @@ from ._refine import RefineResult as RefineResult
 from ._refine import get_refiner as get_refiner
 from ._refine import objective_fn as objective_fn
 from ._refine import stochastic_direction as stochastic_direction
+from ._registry import PlacementMethod as PlacementMethod
+from ._registry import PlaceRequest as PlaceRequest
+from ._registry import PlaceResult as PlaceResult
+from ._registry import get_method as get_method
+from ._registry import method_names as method_names
+from ._registry import method_options as method_options
+from ._registry import reference_methods as reference_methods
+from ._registry import register_method as register_method
 from ._seeds import medial_axis_seeds as medial_axis_seeds
 from ._seeds import shrink_balls as shrink_balls
 from ._seeds import skeleton_seeds as skeleton_seeds
 
-# --- baselines ---
+# --- baselines (registered on import) ---
 # isort: split
+from ._baselines import GridOptions as GridOptions
+from ._baselines import LodGridOptions as LodGridOptions
+from ._baselines import VardisOptions as VardisOptions
 from ._lod_grid import LODGrid as LODGrid
 from ._lod_grid import lod_probe_grid as lod_probe_grid
 from ._uniform import INSIDE_CHOICES as INSIDE_CHOICES
@@ -48,3 +58,9 @@ from ._vardis import evaluation_points as evaluation_points
 from ._vardis import leave_one_out_scores as leave_one_out_scores
 from ._vardis import poisson_disk_probes as poisson_disk_probes
 from ._vardis import vardis_simplify as vardis_simplify
+
+# isort: split
+#: The built-in methods, in registration order (``method_names()`` also lists methods registered later).
+METHODS = method_names()
+#: Methods that lay a lattice anchored to the scene's box (their ``shift`` option moves it).
+BASELINE_METHODS = tuple(m for m in METHODS if get_method(m).lattice)

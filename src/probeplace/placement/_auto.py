@@ -36,7 +36,6 @@ import heapq
 import logging
 import time
 
-import equinox as eqx
 import jax
 import jax.numpy as jnp
 import numpy as np
@@ -50,8 +49,9 @@ from ._seeds import medial_axis_seeds, skeleton_seeds
 log = logging.getLogger(__name__)
 
 
-class AutoResult(eqx.Module):
-    """The outcome of :func:`auto_budget`.
+@dataclasses.dataclass(frozen=True)
+class AutoResult:
+    """The outcome of :func:`auto_budget` (a host-side result: a frozen dataclass, docs/conventions.md).
 
     Attributes:
         pos: chosen probe positions (n, 3).
@@ -262,6 +262,191 @@ def auto_budget(
     return dataclasses.replace(best, n_candidates=len(pool), timings=timings)
 
 
+@dataclasses.dataclass(frozen=True, eq=False)
+class _Coverable:
+    """What one :func:`_search` measures coverage on: the coverable samples (every visibility row is over
+    these columns), their areas, the target, and the phase timings it adds to."""
+
+    problem: PlacementProblem
+    caster: object
+    cols: np.ndarray  # (m,) indices of the coverable samples in the problem
+    a_all: np.ndarray  # (n_samples,) area, 0 where not coverable
+    a: np.ndarray  # (m,) area of the coverable samples
+    total: float
+    target: float
+    target_area: float
+    timings: dict
+
+
+def _check_search_options(target: float, search_samples: int | None) -> None:
+    """Reject a target outside (0, 1] and a non-positive ``search_samples`` before any visibility work."""
+    if not (0.0 < target <= 1.0):
+        raise ConfigError(f"target coverage must be in (0, 1], got {target}")
+    if search_samples is not None and search_samples < 1:
+        raise ConfigError(f"search_samples must be positive or None, got {search_samples}")
+
+
+def _feasible_candidates(problem: PlacementProblem, candidates: np.ndarray) -> np.ndarray:
+    """The candidates (k, 3) float32 with at least the problem's SDF clearance (not inside geometry)."""
+    cand = np.asarray(candidates, np.float32).reshape(-1, 3)
+    return cand[probe_clearance(problem, cand) >= float(problem.clearance)]
+
+
+def _coverable(problem: PlacementProblem, target: float, caster) -> _Coverable:
+    """The coverable samples, their areas and the target area; timings start with ``visibility_s = 0``."""
+    a_all = np.asarray(problem.area, np.float64) * np.asarray(problem.coverable)
+    # Only coverable samples count: every row below is over these columns.
+    cols = np.flatnonzero(a_all > 0)
+    a = a_all[cols]
+    total = a.sum()
+    # Numerically "all": a target of 1 means every coverable sample.
+    target_area = target * total * (1.0 - 1e-9)
+    timings = {"visibility_s": 0.0}
+    return _Coverable(problem, caster, cols, a_all, a, total, target, target_area, timings)
+
+
+def _search_rng(key: jax.Array) -> np.random.Generator:
+    """Host generator seeded from ``key`` (search subset and gap-candidate spread)."""
+    return np.random.default_rng(np.asarray(jax.random.key_data(key)).ravel()[-1:].astype(np.uint32))
+
+
+def _visibility(cov: _Coverable, p: np.ndarray, c: np.ndarray) -> np.ndarray:
+    """Binary visibility rows of probes ``p`` on coverable columns ``c``, timed into ``visibility_s``."""
+    t1 = time.perf_counter()
+    v = binary_visibility(cov.problem, p, caster=cov.caster, samples=cov.cols[c])
+    cov.timings["visibility_s"] += time.perf_counter() - t1
+    return v
+
+
+def _coarse_pass(
+    cov: _Coverable, cand: np.ndarray, search_samples: int | None, rng: np.random.Generator, limit: int | None
+) -> tuple[list[int], bool]:
+    """Step 2 on a spread subset of at most ``search_samples`` coverable samples (coarse-to-fine, module
+    docstring): the lazy greedy picks (Minoux 1978) and whether the subset was every coverable sample."""
+    sub = np.arange(len(cov.cols))
+    if search_samples is not None and len(cov.cols) > search_samples:
+        sub = _search_subset(sub, int(search_samples), np.asarray(cov.problem.position)[cov.cols], rng)
+    v_sub = _visibility(cov, cand, sub)
+    seen_sub = np.zeros(len(sub), bool)
+    chosen = _greedy(v_sub, cov.a[sub], seen_sub, cov.target * cov.a[sub].sum() * (1.0 - 1e-9), limit=limit)
+    return chosen, len(sub) == len(cov.cols)
+
+
+def _add_from_candidates(
+    cov: _Coverable, cand: np.ndarray, dead: np.ndarray, seen: np.ndarray, left: int | None
+) -> list[int]:
+    """Greedy picks among the live candidates scored on the unseen samples only; marks ``dead`` those that
+    add nothing there and updates ``seen`` in place (both arrays)."""
+    unseen = np.flatnonzero(~seen)
+    rest = np.flatnonzero(~dead)
+    if not len(rest):
+        return []
+    v_u = _visibility(cov, cand[rest], unseen)
+    dead[rest[~v_u.any(axis=1)]] = True
+    s_u = np.zeros(len(unseen), bool)
+    picks = _greedy(v_u, cov.a[unseen], s_u, cov.target_area - cov.a[seen].sum(), limit=left)
+    if picks:
+        # what they add is known from the rows on the unseen samples; full rows come at the end
+        seen[unseen] = s_u
+    return [int(rest[i]) for i in picks]
+
+
+def _gaps_in_front_of_unseen(
+    cov: _Coverable, seen: np.ndarray, gap_candidates: int, rng: np.random.Generator
+) -> np.ndarray:
+    """Step 3, Wang's "adding where coverage is missing": gap candidates in front of unseen samples."""
+    unseen_all = np.zeros(len(cov.a_all), bool)
+    unseen_all[cov.cols[np.flatnonzero(~seen)]] = True
+    return _gap_candidates(cov.problem, unseen_all, gap_candidates, rng)
+
+
+def _fine_pass(
+    cov: _Coverable,
+    cand: np.ndarray,
+    chosen: list[int],
+    exact: bool,
+    *,
+    limit: int | None,
+    max_rounds: int,
+    gap_candidates: int,
+    rng: np.random.Generator,
+) -> tuple[np.ndarray, list[int], np.ndarray]:
+    """Fine pass: the chosen probes at full density; candidates scored on what is still unseen, then gap
+    candidates in front of unseen samples, until the target or the budget; (candidates, chosen, full rows)."""
+    n = len(cov.cols)
+    # Candidates that add nothing on the unseen samples never will (the unseen set only shrinks).
+    dead = np.zeros(len(cand), bool)
+    if exact:
+        dead[:] = True
+    rows = _visibility(cov, cand[chosen], np.arange(n)) if chosen else np.zeros((0, n), bool)
+    seen = rows.any(axis=0) if len(rows) else np.zeros(n, bool)
+    for _ in range(max_rounds + 1):
+        if cov.a[seen].sum() >= cov.target_area or (limit is not None and len(chosen) >= limit):
+            break
+        dead[chosen] = True
+        picks = _add_from_candidates(cov, cand, dead, seen, None if limit is None else limit - len(chosen))
+        if picks:
+            chosen += picks
+            continue
+        dead[:] = True
+        gaps = _gaps_in_front_of_unseen(cov, seen, gap_candidates, rng)
+        if len(gaps) == 0:
+            break
+        cand = np.concatenate([cand, gaps])
+        dead = np.concatenate([dead, np.zeros(len(gaps), bool)])
+    if len(chosen) > len(rows):
+        rows = np.concatenate([rows, _visibility(cov, cand[chosen[len(rows) :]], np.arange(n))])
+    return cand, chosen, rows
+
+
+def _addition_curve(rows: np.ndarray, a: np.ndarray) -> list:
+    """(count, covered area) after each greedy addition, in order, at full density."""
+    curve: list = []
+    acc = np.zeros(len(a), bool)
+    for r in rows:
+        acc |= r
+        curve.append((len(curve) + 1, float(a[acc].sum())))
+    return curve
+
+
+def _refine_if_no_worse(
+    cov: _Coverable,
+    refiner: AbstractRefiner | None,
+    refine_problem: PlacementProblem | None,
+    pos: np.ndarray,
+    rows: np.ndarray,
+    coverage: float,
+    key: jax.Array,
+) -> tuple[np.ndarray, np.ndarray, float, str | None, bool]:
+    """Step 4: refine the chosen set on the soft objective, kept only if its binary coverage does not drop
+    and every probe keeps its clearance; (pos, rows, coverage, refine_status, refined)."""
+    if refiner is None or not len(pos):
+        return pos, rows, coverage, None, False
+    t1 = time.perf_counter()
+    res = refiner.refine(refine_problem or cov.problem, jnp.asarray(pos), key=key)
+    refine_status, refined = res.status_message(), False
+    new_pos = np.asarray(res.pos, np.float32)
+    new_rows = _visibility(cov, new_pos, np.arange(len(cov.cols)))
+    new_cov = _coverage_of(new_rows, cov.a)
+    if new_cov >= coverage and np.all(probe_clearance(cov.problem, new_pos) >= float(cov.problem.clearance)):
+        pos, rows, coverage, refined = new_pos, new_rows, new_cov, True
+    cov.timings["refine_s"] = time.perf_counter() - t1
+    return pos, rows, coverage, refine_status, refined
+
+
+def _drop_redundant(
+    cov: _Coverable, pos: np.ndarray, rows: np.ndarray, coverage: float, curve: list
+) -> tuple[np.ndarray, np.ndarray]:
+    """Step 5: drop probes (least unique area first) while the coverage stays at the target (or at what
+    was reached); the removals extend ``curve``."""
+    t1 = time.perf_counter()
+    goal = min(coverage * cov.total, cov.target_area)
+    keep = _remove_redundant(rows, cov.a, goal, curve) if len(rows) else []
+    pos, rows = pos[keep], rows[keep]
+    cov.timings["remove_s"] = time.perf_counter() - t1
+    return pos, rows
+
+
 def _search(
     problem: PlacementProblem,
     *,
@@ -297,110 +482,38 @@ def _search(
     Raises:
         ConfigError: target outside (0, 1], or ``search_samples`` not positive.
     """
-    if not (0.0 < target <= 1.0):
-        raise ConfigError(f"target coverage must be in (0, 1], got {target}")
-    if search_samples is not None and search_samples < 1:
-        raise ConfigError(f"search_samples must be positive or None, got {search_samples}")
-    timings: dict[str, float] = {}
-    cand = np.asarray(candidates, np.float32).reshape(-1, 3)
-    cand = cand[probe_clearance(problem, cand) >= float(problem.clearance)]
-    a_all = np.asarray(problem.area, np.float64) * np.asarray(problem.coverable)
-    # Only coverable samples count: every row below is over these columns.
-    cols = np.flatnonzero(a_all > 0)
-    a = a_all[cols]
-    total = a.sum()
-    # Numerically "all": a target of 1 means every coverable sample.
-    target_area = target * total * (1.0 - 1e-9)
-    rng = np.random.default_rng(np.asarray(jax.random.key_data(key)).ravel()[-1:].astype(np.uint32))
-    timings["visibility_s"] = 0.0
-
-    def vis_of(p: np.ndarray, c: np.ndarray) -> np.ndarray:
-        t1 = time.perf_counter()
-        v = binary_visibility(problem, p, caster=caster, samples=cols[c])
-        timings["visibility_s"] += time.perf_counter() - t1
-        return v
-
+    _check_search_options(target, search_samples)
+    cand = _feasible_candidates(problem, candidates)
+    cov = _coverable(problem, target, caster)
+    rng = _search_rng(key)
     limit = None if max_probes is None else int(max_probes)
     t_greedy = time.perf_counter()
     # 1. coarse pass: every candidate scored on a spread subset of the coverable samples
-    sub = np.arange(len(cols))
-    if search_samples is not None and len(cols) > search_samples:
-        sub = _search_subset(sub, int(search_samples), np.asarray(problem.position)[cols], rng)
-    v_sub = vis_of(cand, sub)
-    seen_sub = np.zeros(len(sub), bool)
-    chosen = _greedy(v_sub, a[sub], seen_sub, target * a[sub].sum() * (1.0 - 1e-9), limit=limit)
-    del v_sub
-    full = len(sub) == len(cols)
-    # Candidates that add nothing on the unseen samples never will (the unseen set only shrinks).
-    dead = np.zeros(len(cand), bool)
-    if full:
-        dead[:] = True
+    chosen, exact = _coarse_pass(cov, cand, search_samples, rng, limit)
     # 2. fine pass: the chosen probes at full density; candidates scored on what is still unseen, then
     #    gap candidates in front of unseen samples (Wang's "adding where coverage is missing")
-    rows = vis_of(cand[chosen], np.arange(len(cols))) if chosen else np.zeros((0, len(cols)), bool)
-    seen = rows.any(axis=0) if len(rows) else np.zeros(len(cols), bool)
-    for _ in range(max_rounds + 1):
-        if a[seen].sum() >= target_area or (limit is not None and len(chosen) >= limit):
-            break
-        unseen = np.flatnonzero(~seen)
-        dead[chosen] = True
-        rest = np.flatnonzero(~dead)
-        if len(rest):
-            v_u = vis_of(cand[rest], unseen)
-            dead[rest[~v_u.any(axis=1)]] = True
-            s_u = np.zeros(len(unseen), bool)
-            left = None if limit is None else limit - len(chosen)
-            picks = _greedy(v_u, a[unseen], s_u, target_area - a[seen].sum(), limit=left)
-            if picks:
-                # what they add is known from the rows on the unseen samples; full rows come at the end
-                chosen += [int(rest[i]) for i in picks]
-                seen[unseen] = s_u
-                continue
-        dead[:] = True
-        unseen_all = np.zeros(len(a_all), bool)
-        unseen_all[cols[unseen]] = True
-        gaps = _gap_candidates(problem, unseen_all, gap_candidates, rng)
-        if len(gaps) == 0:
-            break
-        cand = np.concatenate([cand, gaps])
-        dead = np.concatenate([dead, np.zeros(len(gaps), bool)])
-    if len(chosen) > len(rows):
-        rows = np.concatenate([rows, vis_of(cand[chosen[len(rows) :]], np.arange(len(cols)))])
-    timings["greedy_s"] = time.perf_counter() - t_greedy
+    cand, chosen, rows = _fine_pass(
+        cov, cand, chosen, exact, limit=limit, max_rounds=max_rounds, gap_candidates=gap_candidates, rng=rng
+    )
+    cov.timings["greedy_s"] = time.perf_counter() - t_greedy
     pos = cand[chosen]
     # the coverage-vs-count curve of the additions, at full density
-    curve: list = []
-    acc = np.zeros(len(cols), bool)
-    for r in rows:
-        acc |= r
-        curve.append((len(curve) + 1, float(a[acc].sum())))
-    cov = _coverage_of(rows, a)
+    curve = _addition_curve(rows, cov.a)
+    coverage = _coverage_of(rows, cov.a)
     # Refinement between adding and removing: keep it only if the binary coverage does not drop.
-    refine_status, refined = None, False
-    if refiner is not None and len(pos):
-        t1 = time.perf_counter()
-        res = refiner.refine(refine_problem or problem, jnp.asarray(pos), key=key)
-        refine_status = res.status_message()
-        new_pos = np.asarray(res.pos, np.float32)
-        new_rows = vis_of(new_pos, np.arange(len(cols)))
-        new_cov = _coverage_of(new_rows, a)
-        if new_cov >= cov and np.all(probe_clearance(problem, new_pos) >= float(problem.clearance)):
-            pos, rows, cov, refined = new_pos, new_rows, new_cov, True
-        timings["refine_s"] = time.perf_counter() - t1
+    pos, rows, coverage, refine_status, refined = _refine_if_no_worse(
+        cov, refiner, refine_problem, pos, rows, coverage, key
+    )
     # Removal: drop probes (least unique area first) while the coverage stays at the target.
-    t1 = time.perf_counter()
-    keep = _remove_redundant(rows, a, min(cov * total, target_area), curve) if len(rows) else []
-    pos, rows = pos[keep], rows[keep]
-    timings["remove_s"] = time.perf_counter() - t1
-    cov = _coverage_of(rows, a)
-    curve = [(int(k), float(c / max(total, 1e-300))) for k, c in curve]
+    pos, rows = _drop_redundant(cov, pos, rows, coverage, curve)
+    curve = [(int(k), float(c / max(cov.total, 1e-300))) for k, c in curve]
     return AutoResult(
         pos=pos.astype(np.float32),
-        coverage=cov,
+        coverage=_coverage_of(rows, cov.a),
         curve=curve,
         n_candidates=len(cand),
-        reached=bool((a * rows.any(axis=0)).sum() >= target_area) if len(rows) else False,
-        timings=timings,
+        reached=bool((cov.a * rows.any(axis=0)).sum() >= cov.target_area) if len(rows) else False,
+        timings=cov.timings,
         refine_status=refine_status,
         refined=refined,
     )

@@ -64,8 +64,25 @@ from ..geometry import (
 from ._field import tighten_sdf
 
 
+def dynamic_float(v):
+    """Converter of a swept float field: a Python number becomes a NumPy float64 scalar.
+
+    On the host it is still a ``float`` (JSON, comparisons, f-strings read it as before), but
+    ``eqx.filter_jit`` sees an array, so it is traced rather than baked into the compiled code: a sweep
+    over the value compiles once. Code that computes with it casts it to the dtype at hand
+    (``jnp.asarray(v, dtype)``): a traced float64 would otherwise promote float32 arithmetic.
+    """
+    if isinstance(v, int | float) and not isinstance(v, bool):
+        return np.float64(v)
+    return v
+
+
 class FitnessConfig(eqx.Module):
     """Parameters of the fitness (see the module docstring).
+
+    The float fields are dynamic (:func:`dynamic_float`: traced under ``jax.jit``/``eqx.filter_jit``, so
+    sweeping them never recompiles); ``map_res``, ``n_steps`` and ``two_sided`` shape the computation and
+    are static.
 
     Attributes:
         w1: weight of the solid-angle term Ω̄ = −ω·n (Wang Eq. 2).
@@ -78,22 +95,27 @@ class FitnessConfig(eqx.Module):
         clearance_voxels: a probe position is feasible when its SDF value is at least this many voxels.
     """
 
-    w1: float = 1.0
-    w2: float = 1.0
+    w1: float = eqx.field(default=1.0, converter=dynamic_float)
+    w2: float = eqx.field(default=1.0, converter=dynamic_float)
     map_res: int = eqx.field(static=True, default=64)
-    sharpness_voxels: float = 0.5
+    sharpness_voxels: float = eqx.field(default=0.5, converter=dynamic_float)
     n_steps: int = eqx.field(static=True, default=32)
-    facing_softness: float = 0.1
+    facing_softness: float = eqx.field(default=0.1, converter=dynamic_float)
     two_sided: bool = eqx.field(static=True, default=False)
-    clearance_voxels: float = 2.0
+    clearance_voxels: float = eqx.field(default=2.0, converter=dynamic_float)
 
     def __check_init__(self):
-        for name in ("sharpness_voxels", "facing_softness", "clearance_voxels"):
+        # a stored float64 is checked and shown as the float it was given (``nan``, not ``np.float64(nan)``)
+        def given(name):
             v = getattr(self, name)
+            return float(v) if isinstance(v, np.floating) else v
+
+        for name in ("sharpness_voxels", "facing_softness", "clearance_voxels"):
+            v = given(name)
             if not (isinstance(v, int | float) and math.isfinite(v) and v > 0):
                 raise ConfigError(f"FitnessConfig.{name} must be a positive number, got {v!r}")
         for name in ("w1", "w2"):
-            v = getattr(self, name)
+            v = given(name)
             if not (isinstance(v, int | float) and math.isfinite(v) and v >= 0):
                 raise ConfigError(f"FitnessConfig.{name} must be a non-negative number, got {v!r}")
         for name in ("map_res", "n_steps"):
@@ -144,12 +166,14 @@ class PlacementProblem(eqx.Module):
     @property
     def lift(self) -> Float[Array, ""]:
         """ε = τ + 3s: how far soft visibility lifts a sample off its surface."""
-        return self.thickness + 3.0 * self.config.sharpness_voxels * self.voxel
+        h = self.voxel
+        return self.thickness + 3.0 * jnp.asarray(self.config.sharpness_voxels, h.dtype) * h
 
     @property
     def clearance(self) -> Float[Array, ""]:
         """Smallest feasible probe-to-surface distance, scene units."""
-        return self.config.clearance_voxels * self.voxel
+        h = self.voxel
+        return jnp.asarray(self.config.clearance_voxels, h.dtype) * h
 
 
 def _normal_march(grid: SDFGrid, lo, hi, clearance: float, diag: float, position, normal):
@@ -316,7 +340,7 @@ def _segment_visibility(problem: PlacementProblem, p: Array, target: Array, skip
     cfg = problem.config
     dtype = p.dtype
     h = problem.voxel.astype(dtype)
-    s = cfg.sharpness_voxels * h
+    s = jnp.asarray(cfg.sharpness_voxels, dtype) * h
     tau = problem.thickness.astype(dtype)
     seg = p - target  # from the sample toward the probe
     length = safe_norm(seg)
@@ -359,10 +383,13 @@ def probe_column(problem: PlacementProblem, p: Float[Array, "3"]) -> ProbeColumn
     if cfg.two_sided:
         omega = jnp.sqrt(cos * cos + jnp.asarray(1e-12, dtype))
     else:
-        vis = vis * jax.nn.sigmoid(cos / kappa)
+        # XLA compiles ÷ by a constant κ as × 1/κ: a traced κ (a swept config) takes the product too, so
+        # it gives bit for bit what a constant κ gives, under jit and eagerly alike
+        traced = isinstance(kappa, jax.core.Tracer)
+        vis = vis * jax.nn.sigmoid(cos * (1.0 / kappa) if traced else cos / kappa)
         omega = cos
     # A probe inside a solid sees nothing: its own clearance gates every sample.
-    inside = jax.nn.sigmoid(sdf_value(problem.grid, p) / (cfg.sharpness_voxels * h))
+    inside = jax.nn.sigmoid(sdf_value(problem.grid, p) / (jnp.asarray(cfg.sharpness_voxels, dtype) * h))
     return ProbeColumn(vis=vis * inside, omega=omega)
 
 
@@ -392,7 +419,8 @@ def wang_from_columns(
     cfg = problem.config
     dtype = vis.dtype
     w = problem.weight.astype(dtype)
-    term = (cfg.w1 * omega + cfg.w2 * dbar[:, None]) * vis  # (n_probes, n)
+    w1, w2 = jnp.asarray(cfg.w1, dtype), jnp.asarray(cfg.w2, dtype)
+    term = (w1 * omega + w2 * dbar[:, None]) * vis  # (n_probes, n)
     term = jnp.where(active[:, None], term, 0.0)
     return jnp.sum(term @ w)
 
@@ -447,7 +475,8 @@ def binary_visibility(problem: PlacementProblem, pos, *, caster=None, samples=No
         problem: the fitness model.
         pos: probe positions (n_probes, 3), host or device array.
         caster: optional exact ray caster (``geometry`` :class:`AbstractRayCaster`); default the SDF tracer.
-            An :class:`~probeplace.geometry.EmbreeCaster` is used on the host (occlusion rays, threaded).
+            A host caster (``caster.jittable`` false: Embree) answers through ``occluded_host`` in large
+            batches; a jittable one through its jitted ``occluded`` in fixed-size chunks (one compilation).
         samples: optional indices of the samples to test (columns of the result); default all.
 
     Returns:
@@ -466,7 +495,7 @@ def binary_visibility(problem: PlacementProblem, pos, *, caster=None, samples=No
     if len(pos) == 0 or len(x) == 0:
         return out
     inside = probe_clearance(problem, pos) <= 0.0
-    host = hasattr(caster, "occluded_host")
+    host = caster is not None and not caster.jittable
     chunk = _HOST_CHUNK if host else _CHUNK
     # The rays of several probes share one cast (a probe's few thousand facing samples would otherwise
     # pad a whole chunk): probes are gathered until a chunk is full, then cast at once.

@@ -38,6 +38,7 @@ from ._fitness import (
     PlacementProblem,
     coverage_from_columns,
     coverage_objective,
+    dynamic_float,
     probe_column,
     probe_distance_term,
     wang_fitness,
@@ -183,11 +184,11 @@ class GibbsRefiner(AbstractRefiner):
 
     objective: str = eqx.field(static=True, default="coverage")
     n_sweeps: int = eqx.field(static=True, default=12)
-    step: float | None = None
-    decay: float = 0.85
+    step: float | None = eqx.field(default=None, converter=dynamic_float)
+    decay: float = eqx.field(default=0.85, converter=dynamic_float)
     stochastic: bool = eqx.field(static=True, default=True)
     gibbs: bool = eqx.field(static=True, default=True)
-    beta: float = 1.0
+    beta: float = eqx.field(default=1.0, converter=dynamic_float)
 
     def __check_init__(self):
         _check_objective(self.objective)
@@ -219,7 +220,7 @@ def _gibbs_run(cfg: GibbsRefiner, problem: PlacementProblem, pos, active, key, s
     wang = cfg.objective == "wang"
     lo, hi = problem.lo.astype(dtype), problem.hi.astype(dtype)
     w = problem.weight.astype(dtype)
-    wcfg = problem.config
+    w1, w2 = jnp.asarray(problem.config.w1, dtype), jnp.asarray(problem.config.w2, dtype)
     signs = jnp.asarray(_SIGNS, dtype)
 
     def column(p):
@@ -228,7 +229,7 @@ def _gibbs_run(cfg: GibbsRefiner, problem: PlacementProblem, pos, active, key, s
         return col.vis, col.omega, d
 
     def per_probe(vis, omega, d):  # Wang: probe k's share r_k of Eq. 1
-        return ((wcfg.w1 * omega + wcfg.w2 * d) * vis) @ w
+        return ((w1 * omega + w2 * d) * vis) @ w
 
     vis, omega, dbar = jax.vmap(column)(pos)
 
@@ -266,7 +267,7 @@ def _gibbs_run(cfg: GibbsRefiner, problem: PlacementProblem, pos, active, key, s
         r_new = value_with(k, vis, omega, dbar, v_n, o_n, d_n, others_miss)
         r_new = jnp.where(feasible(problem, p_new), r_new, 0.0)
         xi = jax.random.uniform(k_acc, (), dtype)
-        ratio = (r_new / jnp.maximum(r_cur, 1e-30)) ** cfg.beta
+        ratio = (r_new / jnp.maximum(r_cur, 1e-30)) ** jnp.asarray(cfg.beta, dtype)
         accept = (xi < ratio) if cfg.gibbs else (r_new > r_cur)
         accept = accept & active[k] & jnp.isfinite(r_new) & (r_new > 0)
         pos = pos.at[k].set(jnp.where(accept, p_new, p))
@@ -284,7 +285,8 @@ def _gibbs_run(cfg: GibbsRefiner, problem: PlacementProblem, pos, active, key, s
         better = r_cur > best_r
         best_pos = jnp.where(better, pos, best_pos)
         best_r = jnp.where(better, r_cur, best_r)
-        return (pos, vis, omega, dbar, r_cur, key, gamma * cfg.decay, n_acc, best_pos, best_r), r_cur
+        gamma = gamma * jnp.asarray(cfg.decay, dtype)
+        return (pos, vis, omega, dbar, r_cur, key, gamma, n_acc, best_pos, best_r), r_cur
 
     r0 = total(vis, omega, dbar)
     init = (pos, vis, omega, dbar, r0, key, step0, jnp.zeros((), jnp.int32), pos, r0)
@@ -294,25 +296,36 @@ def _gibbs_run(cfg: GibbsRefiner, problem: PlacementProblem, pos, active, key, s
     return RefineResult(pos=best_pos, value=best_r, history=hist, status=status, n_accepted=out[7])
 
 
+def _library_refiner(module: str, cls: str, solver: str):
+    """Factory of a refiner from an optional library's module (imported on first use: optimistix, optax and
+    jaxopt are heavy, and most runs never refine)."""
+
+    def make(objective: str, **kwargs) -> AbstractRefiner:
+        import importlib
+
+        refiner = getattr(importlib.import_module(module, __package__), cls)
+        return refiner(solver=solver, objective=objective, **kwargs)
+
+    return make
+
+
+#: The one list of refiners: registry name → factory(objective, **kwargs). Its order is the CLI's and the
+#: reports'. ``ascent`` is Gibbs' best-corner move without the Gibbs sampler.
+_REFINER_FACTORIES = {
+    "gibbs": lambda objective, **kw: GibbsRefiner(objective=objective, **kw),
+    "ascent": lambda objective, **kw: GibbsRefiner(objective=objective, stochastic=False, gibbs=False, **kw),
+    **{s: _library_refiner("._optimistix", "OptimistixRefiner", s) for s in ("bfgs", "nonlinear_cg", "adam")},
+    **{s: _library_refiner("._jaxopt", "JaxoptRefiner", s) for s in ("projected_gradient", "lbfgsb")},
+}
+REFINERS = tuple(_REFINER_FACTORIES)
+
+
 def get_refiner(name: str, *, objective: str = "coverage", **kwargs) -> AbstractRefiner:
-    """Refiner by registry name: ``gibbs``, ``ascent`` (best corner, no Gibbs), ``bfgs``, ``nonlinear_cg``,
+    """Refiner by registry name (:data:`REFINERS`): ``gibbs``, ``ascent``, ``bfgs``, ``nonlinear_cg``,
     ``adam`` (optimistix / optax), ``projected_gradient``, ``lbfgsb`` (jaxopt)."""
-    if name == "gibbs":
-        return GibbsRefiner(objective=objective, **kwargs)
-    if name == "ascent":
-        return GibbsRefiner(objective=objective, stochastic=False, gibbs=False, **kwargs)
-    if name in ("bfgs", "nonlinear_cg", "adam"):
-        from ._optimistix import OptimistixRefiner
-
-        return OptimistixRefiner(solver=name, objective=objective, **kwargs)
-    if name in ("projected_gradient", "lbfgsb"):
-        from ._jaxopt import JaxoptRefiner
-
-        return JaxoptRefiner(solver=name, objective=objective, **kwargs)
-    raise ConfigError(f"unknown refiner {name!r}; choose one of {', '.join(REFINERS)}")
-
-
-REFINERS = ("gibbs", "ascent", "bfgs", "nonlinear_cg", "adam", "projected_gradient", "lbfgsb")
+    if name not in _REFINER_FACTORIES:
+        raise ConfigError(f"unknown refiner {name!r}; choose one of {', '.join(REFINERS)}")
+    return _REFINER_FACTORIES[name](objective, **kwargs)
 
 
 def raise_if_failed(result: RefineResult) -> RefineResult:

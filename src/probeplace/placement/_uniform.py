@@ -26,6 +26,7 @@ from __future__ import annotations
 
 import dataclasses
 
+import equinox as eqx
 import jax
 import jax.numpy as jnp
 import numpy as np
@@ -124,10 +125,26 @@ def _relocate(
     """
     target = jnp.float32(1.5 * clearance)
     h = jnp.float32(0.5) * sdf.voxel_size.astype(jnp.float32)
-    dirs = jnp.asarray(_fibonacci_directions(128))
-    lo_c = jnp.asarray(lo, jnp.float32)
-    hi_c = jnp.asarray(hi, jnp.float32)
     n_radii = max(1, int(np.ceil(float(np.linalg.norm(hi - lo)) / float(h))))
+    p, ok = _relocate_points(
+        sdf,
+        jnp.asarray(pos, jnp.float32),
+        target,
+        jnp.float32(clearance),
+        h,
+        jnp.asarray(_fibonacci_directions(128)),
+        jnp.asarray(lo, jnp.float32),
+        jnp.asarray(hi, jnp.float32),
+        jnp.int32(n_radii),
+        max_steps,
+    )
+    return np.asarray(p, np.float32), np.asarray(ok)
+
+
+# Module level, values as arguments (only ``max_steps`` static): a new scene, clearance or grid reuses the
+# compilation of an equal probe count instead of retracing a closure per call.
+@eqx.filter_jit
+def _relocate_points(sdf, pos, target, clearance, h, dirs, lo_c, hi_c, n_radii, max_steps: int):
     value = jax.vmap(lambda q: sdf_value(sdf, q))
 
     def in_box(q):
@@ -165,8 +182,7 @@ def _relocate(
         ds = jnp.where(oks, jnp.sum((qs - p) ** 2), jnp.inf)
         return jnp.where(dn <= ds, qn, qs), okn | oks
 
-    p, ok = jax.jit(jax.vmap(one))(jnp.asarray(pos, jnp.float32))
-    return np.asarray(p, np.float32), np.asarray(ok)
+    return jax.vmap(one)(pos)
 
 
 def uniform_probe_grid(

@@ -42,7 +42,7 @@ from jaxtyping import Array, Float
 
 from .._core import ConfigError, Scene, next_pow2, scene_box
 from .._core._sh import sh_basis
-from ._tetra import TetMesh
+from ._tetra import RemovalPlan, TetMesh
 from ._uniform import _fibonacci_directions
 
 ERROR_MODES = ("sh", "directions", "average")
@@ -396,6 +396,132 @@ def leave_one_out_scores(
     return deltas / len(mesh.pts)
 
 
+def _check_stopping(positions, target, tolerance, per_iteration) -> int:
+    """Reject a missing stopping rule and bad ``target`` / ``tolerance`` / ``per_iteration`` values before
+    the (costly) tetrahedralisation; returns the probe count n."""
+    if target is None and tolerance is None:
+        raise ConfigError("give a target probe count, an error tolerance, or both")
+    n = len(np.asarray(positions).reshape(-1, 3))
+    if target is not None and not (isinstance(target, int | np.integer) and 4 <= target <= n):
+        raise ConfigError(f"target must be an integer in [4, {n}], got {target!r}")
+    if tolerance is not None and not (np.isfinite(tolerance) and tolerance >= 0):
+        raise ConfigError(f"tolerance must be a non-negative number, got {tolerance!r}")
+    if not (
+        (isinstance(per_iteration, int | np.integer) and per_iteration >= 1)
+        or (isinstance(per_iteration, float) and 0 < per_iteration < 1)
+    ):
+        raise ConfigError(f"per_iteration must be an int ≥ 1 or a fraction in (0, 1), got {per_iteration!r}")
+    return n
+
+
+@dataclasses.dataclass(eq=False)
+class _GreedyState:
+    """Host-side bookkeeping of one :func:`vardis_simplify` run (mutated in place by the loop's steps):
+    cached removal plans and their scores, who depends on whom, and the current per-point errors."""
+
+    mesh: TetMesh
+    scorer: _Scorer
+    err_cur: np.ndarray  # (p,) current error per evaluation point
+    delta: np.ndarray  # (n,) cached change of the summed error if the probe were removed; inf once gone
+    users: list[set[int]]  # users[u]: candidates whose plan reads u
+    plans: dict[int, RemovalPlan] = dataclasses.field(default_factory=dict)
+    plan_err: dict[int, np.ndarray] = dataclasses.field(default_factory=dict)
+    stale: set[int] = dataclasses.field(default_factory=set)  # lazy greedy: cached scores not re-scored
+    order: list[int] = dataclasses.field(default_factory=list)
+    n_scored: int = 0
+
+
+def _start_state(mesh: TetMesh, scorer: _Scorer, n: int) -> _GreedyState:
+    """Empty bookkeeping for ``n`` probes: no plans yet, zero error (the dense set is its own reference)."""
+    return _GreedyState(
+        mesh=mesh,
+        scorer=scorer,
+        err_cur=np.zeros(len(mesh.pts)),
+        delta=np.full(n, np.inf),
+        users=[set() for _ in range(n)],
+    )
+
+
+def _refresh(st: _GreedyState, todo: list[int]) -> None:
+    """Re-plan and re-score the removal of each probe in ``todo`` (one batched scoring), updating the cache
+    and the dependency sets (local connectivity update, past the poster's "Future work")."""
+    new = st.mesh.plan_removals(todo)
+    d, errs = st.scorer.score(new, st.err_cur)
+    st.n_scored += len(new)
+    for p, dv, ev in zip(new, d, errs, strict=True):
+        old = st.plans.get(p.vertex)
+        if old is not None:  # forget the stale plan's dependencies (fewer needless re-plans)
+            for u in old.touch - p.touch:
+                st.users[u].discard(p.vertex)
+        st.plans[p.vertex], st.plan_err[p.vertex], st.delta[p.vertex] = p, ev, dv
+        for u in p.touch:
+            st.users[u].add(p.vertex)
+    st.stale.difference_update(todo)
+
+
+def _rescore(st: _GreedyState, dirty: set[int], lazy: bool) -> None:
+    """Bring the scores of the live ``dirty`` candidates up to date: all at once, or (lazy greedy) only
+    while a stale candidate heads the ranking, the head's stale run re-scored together."""
+    if not lazy or not st.plans:
+        _refresh(st, sorted(v for v in dirty if st.mesh.alive[v]))
+        return
+    # lazy greedy: re-score stale candidates only while one of them heads the ranking
+    st.stale |= {v for v in dirty if st.mesh.alive[v]}
+    while st.stale:
+        alive_ids = np.flatnonzero(st.mesh.alive)
+        head = alive_ids[np.argsort(st.delta[alive_ids], kind="stable")[:LAZY_HEAD]]
+        flags = [int(v) in st.stale for v in head]
+        first_fresh = flags.index(False) if False in flags else len(head)
+        if first_fresh == 0:
+            break
+        _refresh(st, sorted(int(v) for v in head[:first_fresh]))
+
+
+def _removal_count(per_iteration: int | float, n_alive: int, left: int) -> int:
+    """Probes to remove this iteration at most: ``per_iteration`` (or that fraction of the live count),
+    at least 1 and never past the target."""
+    frac = not isinstance(per_iteration, int | np.integer)
+    k = int(per_iteration * n_alive) if frac else int(per_iteration)
+    return max(1, min(k, left))
+
+
+def _choose_removals(st: _GreedyState, k: int, total: float, tolerance: float | None) -> list[int]:
+    """Up to ``k`` removals, smallest error first (Vardis et al. 2021 §2), as an independent set so their
+    scores add up exactly (module docstring); stops before the error would exceed ``tolerance``."""
+    n_pts = len(st.mesh.pts)
+    alive_ids = np.flatnonzero(st.mesh.alive)
+    cand = alive_ids[np.argsort(st.delta[alive_ids], kind="stable")]
+    chosen: list[int] = []
+    blocked: set[int] = set()
+    acc = 0.0
+    for v in cand:
+        v = int(v)
+        if v in st.stale or v in blocked or not st.plans[v].touch.isdisjoint(chosen):
+            continue
+        if tolerance is not None and (total + (acc + st.delta[v]) / n_pts) > tolerance:
+            break
+        chosen.append(v)
+        acc += st.delta[v]
+        blocked |= st.plans[v].touch | {v}
+        if len(chosen) == k:
+            break
+    return chosen
+
+
+def _apply_removals(st: _GreedyState, chosen: list[int]) -> set[int]:
+    """Remove ``chosen`` from the mesh with their cached plans and per-point errors; returns the live
+    candidates whose plans they invalidated (to re-score next iteration)."""
+    dirty: set[int] = set()
+    for v in chosen:
+        p = st.plans[v]
+        dirty |= st.mesh.apply(p)
+        dirty |= st.users[v]
+        st.err_cur[p.points] = st.plan_err[v]
+        st.order.append(v)
+        st.delta[v] = np.inf
+    return dirty - set(chosen)
+
+
 def vardis_simplify(
     positions,
     values,
@@ -437,100 +563,28 @@ def vardis_simplify(
     Raises:
         ConfigError: bad shapes or options, no stopping rule.
     """
-    if target is None and tolerance is None:
-        raise ConfigError("give a target probe count, an error tolerance, or both")
-    n = len(np.asarray(positions).reshape(-1, 3))
-    if target is not None and not (isinstance(target, int | np.integer) and 4 <= target <= n):
-        raise ConfigError(f"target must be an integer in [4, {n}], got {target!r}")
-    if tolerance is not None and not (np.isfinite(tolerance) and tolerance >= 0):
-        raise ConfigError(f"tolerance must be a non-negative number, got {tolerance!r}")
-    if not (
-        (isinstance(per_iteration, int | np.integer) and per_iteration >= 1)
-        or (isinstance(per_iteration, float) and 0 < per_iteration < 1)
-    ):
-        raise ConfigError(f"per_iteration must be an int ≥ 1 or a fraction in (0, 1), got {per_iteration!r}")
+    n = _check_stopping(positions, target, tolerance, per_iteration)
     from tqdm.auto import tqdm
 
     t0 = time.perf_counter()
     mesh, scorer = _setup(positions, values, points, error, n_dirs, weights, tet_jitter)
-    n_pts = len(mesh.pts)
     stop = 4 if target is None else int(target)
     timings = {"setup_s": time.perf_counter() - t0}
     t0 = time.perf_counter()
-    err_cur = np.zeros(n_pts)
+    st = _start_state(mesh, scorer, n)
     total = 0.0
-    plans: dict[int, object] = {}
-    plan_err: dict[int, np.ndarray] = {}
-    delta = np.full(n, np.inf)
-    users: list[set[int]] = [set() for _ in range(n)]  # users[u]: candidates whose plan reads u
     dirty = set(range(n))
-    order: list[int] = []
     hist_c, hist_e = [n], [0.0]
-    n_scored = 0
     bar = tqdm(total=n - stop, disable=not progress, desc="vardis", leave=False)
-    stale: set[int] = set()
-
-    def refresh(todo: list[int]) -> None:
-        nonlocal n_scored
-        new = mesh.plan_removals(todo)
-        d, errs = scorer.score(new, err_cur)
-        n_scored += len(new)
-        for p, dv, ev in zip(new, d, errs, strict=True):
-            old = plans.get(p.vertex)
-            if old is not None:  # forget the stale plan's dependencies (fewer needless re-plans)
-                for u in old.touch - p.touch:
-                    users[u].discard(p.vertex)
-            plans[p.vertex], plan_err[p.vertex], delta[p.vertex] = p, ev, dv
-            for u in p.touch:
-                users[u].add(p.vertex)
-        stale.difference_update(todo)
-
     while int(mesh.alive.sum()) > stop:
-        if not lazy or not plans:
-            refresh(sorted(v for v in dirty if mesh.alive[v]))
-        else:  # lazy greedy: re-score stale candidates only while one of them heads the ranking
-            stale |= {v for v in dirty if mesh.alive[v]}
-            while stale:
-                alive_ids = np.flatnonzero(mesh.alive)
-                head = alive_ids[np.argsort(delta[alive_ids], kind="stable")[:LAZY_HEAD]]
-                flags = [int(v) in stale for v in head]
-                first_fresh = flags.index(False) if False in flags else len(head)
-                if first_fresh == 0:
-                    break
-                todo = sorted(int(v) for v in head[:first_fresh])
-                refresh(todo)
-        alive_ids = np.flatnonzero(mesh.alive)
-        cand = alive_ids[np.argsort(delta[alive_ids], kind="stable")]
-        left = int(mesh.alive.sum()) - stop
-        frac = not isinstance(per_iteration, int | np.integer)
-        k = int(per_iteration * len(alive_ids)) if frac else int(per_iteration)
-        k = max(1, min(k, left))
-        chosen: list[int] = []
-        blocked: set[int] = set()
-        acc = 0.0
-        for v in cand:
-            v = int(v)
-            if v in stale or v in blocked or not plans[v].touch.isdisjoint(chosen):
-                continue
-            if tolerance is not None and (total + (acc + delta[v]) / n_pts) > tolerance:
-                break
-            chosen.append(v)
-            acc += delta[v]
-            blocked |= plans[v].touch | {v}
-            if len(chosen) == k:
-                break
+        _rescore(st, dirty, lazy)
+        n_alive = int(mesh.alive.sum())
+        k = _removal_count(per_iteration, n_alive, n_alive - stop)
+        chosen = _choose_removals(st, k, total, tolerance)
         if not chosen:
             break
-        dirty = set()
-        for v in chosen:
-            p = plans[v]
-            dirty |= mesh.apply(p)
-            dirty |= users[v]
-            err_cur[p.points] = plan_err[v]
-            order.append(v)
-            delta[v] = np.inf
-        dirty -= set(chosen)
-        total = float(err_cur.sum() / n_pts)
+        dirty = _apply_removals(st, chosen)
+        total = float(st.err_cur.sum() / len(mesh.pts))
         hist_c.append(int(mesh.alive.sum()))
         hist_e.append(total)
         bar.update(len(chosen))
@@ -538,11 +592,11 @@ def vardis_simplify(
     timings["loop_s"] = time.perf_counter() - t0
     return VardisResult(
         keep=mesh.alive.copy(),
-        removal_order=np.asarray(order, np.int64),
+        removal_order=np.asarray(st.order, np.int64),
         history_count=np.asarray(hist_c),
         history_error=np.asarray(hist_e),
         error=total,
         n_iterations=len(hist_c) - 1,
-        n_scored=n_scored,
+        n_scored=st.n_scored,
         timings=timings,
     )

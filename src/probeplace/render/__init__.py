@@ -35,7 +35,6 @@ from ._render import RayRadiance as RayRadiance
 from ._render import RenderConfig as RenderConfig
 from ._render import RenderResult as RenderResult
 from ._render import default_caster as default_caster
-from ._render import is_jittable as is_jittable
 from ._render import render as render
 from ._render import trace_rays as trace_rays
 from ._sampling import N_UNIFORMS as N_UNIFORMS

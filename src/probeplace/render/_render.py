@@ -24,7 +24,7 @@ from tqdm.auto import tqdm
 
 from .._core import Camera, ConfigError, Scene, SceneError, next_pow2
 from .._core._errors import check_memory
-from ..geometry import BRUTE_FORCE_MAX_TRIANGLES, AbstractRayCaster, BruteForceCaster, BVHCaster, make_caster
+from ..geometry import AbstractRayCaster, make_caster
 from ._camera import camera_rays
 from ._integrator import COMPONENTS, Paths, ShadeContext, add_shadowed, components, init_paths, shade
 from ._lights import light_table
@@ -109,18 +109,6 @@ class RenderResult(eqx.Module):
         if component not in self.components:
             raise KeyError(f"no component {component!r}; components: {self.components}")
         return self.components.index(component)
-
-
-def is_jittable(caster: AbstractRayCaster) -> bool:
-    """Whether a caster's queries can be traced inside ``jax.jit`` (a host caster such as Embree can't).
-
-    Casters declare it with a ``jittable`` class attribute; without one, the JAX casters (brute force,
-    BVH) are jittable and anything else (Embree) is driven from the host.
-    """
-    declared = getattr(type(caster), "jittable", None)
-    if declared is not None:
-        return bool(declared)
-    return isinstance(caster, (BruteForceCaster, BVHCaster))
 
 
 def _batch_layout(cfg: RenderConfig, n_items: int) -> tuple[int, int]:
@@ -318,12 +306,10 @@ def shade_context(scene: Scene, cfg: RenderConfig) -> ShadeContext:
 
 
 def default_caster(scene: Scene) -> AbstractRayCaster:
-    """The caster :func:`render` uses when given none: the jittable brute-force caster for tiny scenes
-    (the whole bounce loop then runs in one jitted function), else ``geometry.make_caster(scene)``
-    (Embree on the host when embreex is installed, else the JAX BVH)."""
-    if scene.n_triangles <= BRUTE_FORCE_MAX_TRIANGLES:
-        return BruteForceCaster(scene)
-    return make_caster(scene)
+    """The caster :func:`render` uses when given none: ``geometry.make_caster(scene, use="render")``
+    (brute force for tiny scenes, so the whole bounce loop runs in one jitted function; else Embree on
+    the host when embreex is installed, else the JAX BVH)."""
+    return make_caster(scene, use="render")
 
 
 def _seed(key) -> UInt32[Array, ""]:
@@ -356,7 +342,7 @@ def _accumulate(scene, source, n_items: int, config: RenderConfig, seed, caster,
         if not isinstance(caster, AbstractRayCaster):
             raise TypeError(f"caster must be an AbstractRayCaster, got {type(caster).__name__}")
         ctx = shade_context(scene, config)
-        if not is_jittable(caster):
+        if not caster.jittable:
             run = _batch_host
         else:
             run = _batch_compact if config.schedule == "compact" else _batch_jit

@@ -10,7 +10,9 @@
   values with strength 1. Textures are ignored (constant colour per material); a primitive without a
   material gets :data:`~probeplace.scene._raw.DEFAULT_GREY`, rough and dielectric.
 * Cameras: every node with a ``perspective`` camera, in world space (glTF cameras look along −Z of the
-  node frame with +Y up; spec §3.10). ``yfov`` is in radians in the file.
+  node frame with +Y up; spec §3.10). ``yfov`` is in radians in the file. trimesh 5.2 keeps only the
+  first camera and ignores ``KHR_lights_punctual``, so both are read from the JSON here.
+* Sun: the first ``KHR_lights_punctual`` directional light (:func:`gltf_sun`).
 """
 
 from __future__ import annotations
@@ -18,14 +20,16 @@ from __future__ import annotations
 import json
 import logging
 import struct
+from collections.abc import Iterator
 from pathlib import Path
 
 import numpy as np
 import trimesh
 
-from .._core import Camera, SceneError
+from .._core import Camera, SceneError, Sun
 from ._build import make_camera
 from ._raw import DEFAULT_GREY, PartCollector, RawScene, trimesh_errors
+from ._sky import sun_from_irradiance
 
 log = logging.getLogger(__name__)
 
@@ -115,12 +119,11 @@ def _node_local(node: dict) -> np.ndarray:
     return t @ r @ s
 
 
-def gltf_cameras(doc: dict) -> list[Camera]:
-    """World-space perspective cameras of the default scene's nodes (orthographic ones are skipped)."""
-    nodes, cams = doc.get("nodes", []), doc.get("cameras", [])
+def _world_nodes(doc: dict) -> Iterator[tuple[int, dict, np.ndarray]]:
+    """(index, node, world 4×4) for every node of the default scene, parents before children."""
+    nodes = doc.get("nodes", [])
     scenes = doc.get("scenes", [])
     roots = scenes[doc.get("scene", 0)].get("nodes", []) if scenes else range(len(nodes))
-    out: list[Camera] = []
     stack = [(int(i), np.eye(4)) for i in roots]
     seen: set[int] = set()
     while stack:
@@ -130,6 +133,15 @@ def gltf_cameras(doc: dict) -> list[Camera]:
         seen.add(i)
         node = nodes[i]
         world = parent @ _node_local(node)
+        yield i, node, world
+        stack.extend((int(c), world) for c in node.get("children", []))
+
+
+def gltf_cameras(doc: dict) -> list[Camera]:
+    """World-space perspective cameras of the default scene's nodes (orthographic ones are skipped)."""
+    cams = doc.get("cameras", [])
+    out: list[Camera] = []
+    for i, node, world in _world_nodes(doc):
         if "camera" in node and 0 <= node["camera"] < len(cams):
             cam = cams[node["camera"]]
             if cam.get("type") == "perspective" and "perspective" in cam:
@@ -141,8 +153,43 @@ def gltf_cameras(doc: dict) -> list[Camera]:
                 out.append(make_camera(pos, pos + fwd, fov, name, up=up))
             else:
                 log.info("skipping non-perspective camera on node %d", i)
-        stack.extend((int(c), world) for c in node.get("children", []))
     return out
+
+
+def gltf_sun(doc: dict, path: Path | str = "<glTF>") -> Sun | None:
+    """The first ``KHR_lights_punctual`` directional light of the default scene, as the sun.
+
+    The light shines along its node's −Z (extension spec), so the sun lies along the node's world +Z.
+    ``color × intensity`` (lux in the spec) is taken as the sun's irradiance in the scene's relative
+    radiance units; the disk has the real sun's size (the extension gives directional lights none).
+    Point and spot lights are skipped with a warning: probeplace has no point lights (use emitters).
+    """
+    lights = doc.get("extensions", {}).get("KHR_lights_punctual", {}).get("lights", [])
+    if not lights:
+        return None
+    suns: list[Sun] = []
+    for _, node, world in _world_nodes(doc):
+        ref = node.get("extensions", {}).get("KHR_lights_punctual", {}).get("light")
+        if not isinstance(ref, int) or not 0 <= ref < len(lights):
+            continue
+        light = lights[ref]
+        if light.get("type") != "directional":
+            log.warning(
+                "%s: KHR_lights_punctual %s light %r skipped: only directional lights (as the sun) are read",
+                path,
+                light.get("type"),
+                light.get("name", ref),
+            )
+            continue
+        irradiance = np.asarray(light.get("color", [1.0, 1.0, 1.0]), np.float64) * float(
+            light.get("intensity", 1.0)
+        )
+        suns.append(sun_from_irradiance(world[:3, 2], irradiance))
+    if len(suns) > 1:
+        log.warning(
+            "%s: %d directional lights; the first is the sun, the others are skipped", path, len(suns)
+        )
+    return suns[0] if suns else None
 
 
 def _node_order(doc: dict) -> dict[str, int]:
@@ -227,5 +274,6 @@ def load_gltf(path: Path) -> RawScene:
         metallic=np.array([m["metallic"] for m in mats]),
         emission=np.stack([m["emission"] for m in mats]),
         views=gltf_cameras(doc),
+        sun=gltf_sun(doc, path),
         unit_m=1.0,  # glTF 2.0: "the units for all linear distances are meters" (spec §3.4)
     )

@@ -10,6 +10,9 @@ Search path (first match wins), used for names that are not built-in:
    from a source checkout (the repo root has a ``pyproject.toml``).
 
 In each folder a name ``foo`` matches ``foo.glb``, ``foo.gltf``, ``foo.obj``, ``foo.ply`` (in that order).
+
+Every file scene is configured by its sidecar ``foo.probeplace.yaml`` when one lies beside it, under the
+caller's ``overrides`` and over :data:`KNOWN_SCENES` (:mod:`._sidecar`).
 """
 
 from __future__ import annotations
@@ -17,7 +20,7 @@ from __future__ import annotations
 import dataclasses
 import logging
 import os
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
 from pathlib import Path
 
 import numpy as np
@@ -30,6 +33,15 @@ from ._obj import load_obj
 from ._ply import load_ply
 from ._raw import RawScene, ensure_views
 from ._registry import BUILTIN_SCENES
+from ._sidecar import (
+    SceneConfig,
+    merge_scene_configs,
+    no_light_hint,
+    parse_scene_config,
+    read_sidecar,
+    sidecar_path,
+)
+from ._sidecar_apply import apply_scene_config, check_layer
 
 log = logging.getLogger(__name__)
 
@@ -50,11 +62,13 @@ class SceneEntry:
         name: what to pass to :func:`load_scene`.
         kind: ``"builtin"`` or ``"file"``.
         source: the factory's module (built-ins) or the file's path.
+        sidecar: the path of the file's sidecar config if it has one (:func:`sidecar_path`), else None.
     """
 
     name: str
     kind: str
     source: str
+    sidecar: str | None = None
 
 
 def _split(value: str) -> list[Path]:
@@ -104,7 +118,8 @@ def list_scenes(search_path=None) -> list[SceneEntry]:
         for p in files:
             if p.stem not in seen:
                 seen.add(p.stem)
-                out.append(SceneEntry(p.stem, "file", str(p)))
+                side = sidecar_path(p)
+                out.append(SceneEntry(p.stem, "file", str(p), str(side) if side.is_file() else None))
     return out
 
 
@@ -114,7 +129,14 @@ def _looks_like_path(x: str | os.PathLike) -> bool:
     return os.sep in x or (os.altsep is not None and os.altsep in x) or Path(x).suffix != ""
 
 
-def load_scene(name_or_path: str | os.PathLike, *, search_path=None) -> Scene:
+def load_scene(
+    name_or_path: str | os.PathLike,
+    *,
+    search_path=None,
+    overrides: Mapping | SceneConfig | None = None,
+    sidecar: bool = True,
+    require_light: bool = False,
+) -> Scene:
     """Load a scene: a built-in by name, a file by path, or an external scene by name on the search path.
 
     A string with a path separator or a file extension (or any ``os.PathLike``) is a path; otherwise it
@@ -123,22 +145,34 @@ def load_scene(name_or_path: str | os.PathLike, *, search_path=None) -> Scene:
     Args:
         name_or_path: ``"temple"``, ``"crytek_sponza"``, ``"/data/my_scene.glb"``, ...
         search_path: extra folders searched first (see :func:`scene_search_path`).
+        overrides: sidecar keys (docs/scenes.md, "Sidecar config") that win over the file's sidecar,
+            e.g. ``scene_overrides(sun="az=120,el=35")`` from the CLI; also applied to built-ins.
+        sidecar: read ``<stem>.probeplace.yaml`` beside a scene file (False: ignore it).
+        require_light: refuse a scene with no light (an emitter, a sun or a sky) instead of warning.
 
     Returns:
-        The validated Scene, with lights, sky, units and at least two views (known scenes get theirs
-        from :mod:`~probeplace.scene._known`; others keep the file's cameras, topped up with views
-        derived from the bounds).
+        The validated Scene, with lights, sky, units and at least two views (a file keeps its cameras,
+        or those of its sidecar / :data:`KNOWN_SCENES`, topped up with views derived from the bounds).
 
     Raises:
         SceneError: missing file, unsupported extension, unreadable or corrupt file, no triangles,
-            non-finite vertices, or a name that is neither built-in nor found (the message lists where
-            it looked).
+            non-finite vertices, a name that is neither built-in nor found (the message lists where
+            it looked), or no light with ``require_light``.
+        ConfigError: an invalid sidecar or ``overrides`` (the message names the file and key); the
+            sidecar and ``overrides`` are read and checked before the scene file.
     """
     if _looks_like_path(name_or_path):
-        return load_scene_file(Path(name_or_path))
+        return load_scene_file(
+            Path(name_or_path), overrides=overrides, sidecar=sidecar, require_light=require_light
+        )
     name = str(name_or_path)
     if name in BUILTIN_SCENES:
-        return BUILTIN_SCENES[name]()
+        cfg = parse_scene_config(overrides, "overrides")
+        scene = BUILTIN_SCENES[name]()
+        if overrides:
+            check_layer(cfg, set(scene.materials.names), scene.part_names, cfg.up_axis)
+            scene = apply_scene_config(scene, cfg)
+        return _light_check(scene, name, require_light, hint_path=None)
     path = find_scene_file(name, search_path)
     if path is None:
         dirs = "\n  ".join(str(d) for d in scene_search_path(search_path))
@@ -147,11 +181,47 @@ def load_scene(name_or_path: str | os.PathLike, *, search_path=None) -> Scene:
             f"{name}{{{','.join(SCENE_EXTENSIONS)}}} in the search path:\n  {dirs}\n"
             f"(add folders with search_path= or ${SCENE_PATH_ENV})"
         )
-    return load_scene_file(path)
+    return load_scene_file(path, overrides=overrides, sidecar=sidecar, require_light=require_light)
 
 
-def load_scene_file(path: Path) -> Scene:
-    """Load one scene file (glTF/GLB, OBJ+MTL, PLY), adding what :data:`KNOWN_SCENES` knows of it."""
+def _light_check(scene: Scene, source, require_light: bool, hint_path) -> Scene:
+    if not scene.has_light:
+        msg = (
+            f"{source}: the scene has no light (no emissive material, sun or sky); {no_light_hint(hint_path)}"
+        )
+        if require_light:
+            raise SceneError(msg)
+        log.warning("%s", msg)
+    return scene
+
+
+def scene_config_layers(
+    path: str | os.PathLike, overrides: Mapping | SceneConfig | None = None, sidecar: bool = True
+) -> list[SceneConfig]:
+    """The config layers of scene file ``path``, lowest precedence first: :data:`KNOWN_SCENES` for its
+    stem, its sidecar, ``overrides`` (absent ones left out). Cheap: reads no scene geometry.
+
+    Raises:
+        ConfigError: an invalid sidecar or ``overrides``.
+    """
+    path = Path(path)
+    known = KNOWN_SCENES.get(path.stem)
+    layers = [
+        parse_scene_config(known, f"KNOWN_SCENES[{path.stem!r}]") if known is not None else None,
+        read_sidecar(path) if sidecar else None,
+        parse_scene_config(overrides, "overrides") if overrides else None,
+    ]
+    return [layer for layer in layers if layer is not None]
+
+
+def load_scene_file(
+    path: Path,
+    *,
+    overrides: Mapping | SceneConfig | None = None,
+    sidecar: bool = True,
+    require_light: bool = False,
+) -> Scene:
+    """Load one scene file (glTF/GLB, OBJ+MTL, PLY) and apply its config layers (:func:`load_scene`)."""
     path = Path(path)
     ext = path.suffix.lower()
     if ext not in _LOADERS:
@@ -160,17 +230,12 @@ def load_scene_file(path: Path) -> Scene:
         )
     if not path.is_file():
         raise SceneError(f"{path}: scene file not found")
+    layers = scene_config_layers(path, overrides, sidecar)  # before the (possibly slow) file read
+    cfg = merge_scene_configs(*layers)
     raw: RawScene = _LOADERS[ext](path)
-    known = KNOWN_SCENES.get(path.stem)
-    views = list(known.views()) if known is not None else raw.views
-    finite = np.all(np.isfinite(raw.vertices), axis=1)
-    bounds = (
-        np.stack([raw.vertices[finite].min(0), raw.vertices[finite].max(0)])
-        if finite.any()
-        else np.zeros((2, 3))
-    )
-    views = ensure_views(views, bounds)
-    unit_m = known.unit_m if known is not None and known.unit_m is not None else raw.unit_m
+    names = set(raw.material_names)
+    for layer in layers:
+        names = check_layer(layer, names, raw.part_names, cfg.up_axis)
     materials = make_materials(raw.material_names, raw.base_color, raw.roughness, raw.metallic, raw.emission)
     scene = build_scene(
         path.stem,
@@ -180,14 +245,12 @@ def load_scene_file(path: Path) -> Scene:
         materials,
         tri_part=raw.tri_part,
         part_names=raw.part_names,
-        views=views,
-        sun=known.sun() if known is not None and known.sun is not None else None,
-        sky_radiance=known.sky_radiance if known is not None else (0.0, 0.0, 0.0),
-        unit_m=unit_m,
+        views=raw.views,
+        sun=raw.sun,
+        unit_m=raw.unit_m,
         source=str(path),
     )
-    if not scene.has_light:
-        log.warning(
-            "%s: the scene has no light (no emissive material, sun or sky); add one to render it", path
-        )
-    return scene
+    scene = apply_scene_config(scene, cfg)
+    bounds = np.asarray(scene.bounds, np.float64)
+    scene = dataclasses.replace(scene, views=tuple(ensure_views(list(scene.views), bounds)))
+    return _light_check(scene, path, require_light, hint_path=path)

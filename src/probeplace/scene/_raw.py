@@ -12,7 +12,7 @@ from pathlib import Path
 
 import numpy as np
 
-from .._core import Camera, SceneError
+from .._core import Camera, SceneError, Sun
 from ._build import make_camera
 
 log = logging.getLogger(__name__)
@@ -35,6 +35,7 @@ class RawScene:
         base_color, roughness, metallic, emission: material arrays, shapes (n_mat, 3), (n_mat,),
             (n_mat,), (n_mat, 3).
         views: cameras the file defines (may be empty).
+        sun: the sun the file defines (glTF ``KHR_lights_punctual`` directional light), or None.
         unit_m: metres per file unit, if the file says (glTF: 1 by specification).
     """
 
@@ -50,6 +51,7 @@ class RawScene:
     emission: np.ndarray
     views: list[Camera] = dataclasses.field(default_factory=list)
     unit_m: float = 1.0
+    sun: Sun | None = None
 
 
 class PartCollector:

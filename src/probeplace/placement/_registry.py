@@ -1,0 +1,220 @@
+"""The placement method registry and the types every method shares.
+
+A method registers once, beside its function (:func:`register_method`): its name, its options dataclass,
+its function and a display label. ``place``, the ``probeplace place`` command, the experiment schema and
+the report read the registry; nothing else lists the methods. The config file of a method is
+``configs/placer/<config_name>.yaml`` (``lod-grid`` → ``lod_grid``: Hydra option names are file names).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from collections.abc import Callable
+from dataclasses import dataclass, field
+from typing import Any
+
+from .._core import ConfigError, ProbeSet
+from ..geometry import AbstractRayCaster
+
+
+@dataclass(frozen=True)
+class PlaceRequest:
+    """What ``place`` asks of every method (all but the method's own options).
+
+    Attributes:
+        budget: ``"auto"`` or a maximum probe count.
+        refiner: refiner registry name or ``None``.
+        objective: the refiner's soft objective, ``coverage`` or ``wang``.
+        seed: PRNG seed.
+        target: coverage target of the automatic budget.
+        n_opt_samples: surface samples of the refiner's problem.
+        config: fitness parameters (``FitnessConfig``) or ``None`` for the defaults.
+        caster: binary visibility of the coverage: ``"auto"``, ``"embree"``, ``"sdf"``, ``None`` or a caster
+            object (any ``geometry.AbstractRayCaster``, used as given).
+    """
+
+    budget: int | str = "auto"
+    refiner: str | None = None
+    objective: str = "coverage"
+    seed: int = 0
+    target: float = 1.0
+    n_opt_samples: int = 1500
+    config: Any = None
+    caster: str | AbstractRayCaster | None = "auto"
+
+    def __post_init__(self):
+        """The checks of ``place``'s arguments (the experiment runner builds a request to run them too)."""
+        from ._refine import OBJECTIVES, REFINERS
+
+        b = self.budget
+        if b != "auto" and (isinstance(b, bool) or not isinstance(b, int) or b < 1):
+            raise ConfigError(f"budget must be 'auto' or a positive integer, got {b!r}")
+        if self.refiner is not None and self.refiner not in REFINERS:
+            raise ConfigError(f"refiner must be one of {REFINERS} or None, got {self.refiner!r}")
+        if self.objective not in OBJECTIVES:
+            raise ConfigError(f"objective must be one of {OBJECTIVES}, got {self.objective!r}")
+        if not 0.0 < float(self.target) <= 1.0:
+            raise ConfigError(f"target must be in (0, 1], got {self.target!r}")
+        n = self.n_opt_samples
+        if isinstance(n, bool) or not isinstance(n, int) or n < 1:
+            raise ConfigError(f"n_opt_samples must be a positive integer, got {n!r}")
+
+
+@dataclass(frozen=True)
+class PlaceResult:
+    """What ``place`` returns (host side: a frozen dataclass, docs/architecture.md).
+
+    Attributes:
+        probes: the placed probes (all active).
+        method: the method's registry name.
+        request: what was asked.
+        coverage: binary surface coverage of ``probes`` (share of coverable area seen by ≥ 1 probe).
+        visibility: who decided the binary visibility: ``"sdf"`` or the exact caster's class name.
+        timings: seconds per step of the method (``total_s``: all of it).
+        refine_status: the refiner's status (``"ok"``, ...) or ``None`` when no refiner ran.
+        refined: whether the refined positions were kept (they are only when coverage does not drop).
+        target_reached: whether the automatic search reached ``request.target`` (``None``: no search).
+        min_probe_clearance: smallest distance from a probe to a surface (``None``: not measured).
+        info: the method's own record (JSON-able): its resolved options or fitness config under
+            ``config``, and its statistics.
+    """
+
+    probes: ProbeSet
+    method: str
+    request: PlaceRequest
+    coverage: float
+    visibility: str
+    timings: dict[str, float]
+    refine_status: str | None = None
+    refined: bool = False
+    target_reached: bool | None = None
+    min_probe_clearance: float | None = None
+    info: dict[str, Any] = field(default_factory=dict)
+
+    @property
+    def n_probes(self) -> int:
+        return int(self.probes.pos_world.shape[0])
+
+    @property
+    def refine_converged(self) -> bool | None:
+        """Whether the refiner converged (stopped on its tolerance; the fixed-sweep refiners when they
+        finish finite); ``None`` when no refiner ran."""
+        return None if self.refine_status is None else self.refine_status == "ok"
+
+    @property
+    def metadata(self) -> dict[str, Any]:
+        """The JSON record stored with the probe set (``save_probe_set(metadata=...)``)."""
+        r = self.request
+        # the automatic search reports both (clearance None without probes); the lattice methods neither
+        search = (
+            {}
+            if self.target_reached is None
+            else {"target_reached": self.target_reached, "min_probe_clearance": self.min_probe_clearance}
+        )
+        return {
+            "method": self.method,
+            "budget": r.budget,
+            "refiner": r.refiner,
+            "objective": r.objective,
+            "seed": r.seed,
+            **refine_record(self.refine_status, self.refined),
+            "n_probes": self.n_probes,
+            "coverage": self.coverage,
+            "visibility": self.visibility,
+            **search,
+            **self.info,
+            "timings": self.timings,
+        }
+
+
+def refine_record(status: str | None, refined: bool) -> dict[str, Any]:
+    """The refinement step's record: its status, whether it converged (the solver stopped on its
+    tolerance, not on ``max_steps`` or a non-finite objective; the fixed-sweep Gibbs and ascent refiners
+    count as converged when they finish finite) and whether its positions were kept."""
+    if status is None:
+        return {"refined": False}
+    return {"refine_status": status, "refine_converged": status == "ok", "refined": bool(refined)}
+
+
+PlaceFn = Callable[[Any, PlaceRequest, Any], PlaceResult]
+
+
+@dataclass(frozen=True)
+class PlacementMethod:
+    """A registered placement method.
+
+    Attributes:
+        name: registry key: ``place(method=...)``, ``placer.method``, run folder names, metrics.
+        place_fn: ``place_fn(scene, request, options) -> PlaceResult``.
+        options: frozen dataclass of the method's options with their defaults; ``None``: it takes none.
+        label: display label (CLI help, report legends).
+        lattice: the method lays a lattice anchored to the scene's bounding box; its ``shift`` option (a
+            3-vector, scene units) moves that lattice (the stability study keeps it fixed in the world).
+        reference: a reference baseline: reports list it first, and compare every method with the first
+            registered one (the uniform grid).
+    """
+
+    name: str
+    place_fn: PlaceFn
+    options: type | None = None
+    label: str = ""
+    lattice: bool = False
+    reference: bool = False
+
+    @property
+    def config_name(self) -> str:
+        """The file stem of its ``configs/placer/`` config (Hydra option names are file names)."""
+        return self.name.replace("-", "_").replace("+", "_")
+
+    def parse_options(self, given: dict | None) -> Any:
+        """The options dataclass with ``given`` applied; unknown keys raise ConfigError."""
+        given = dict(given or {})
+        if self.options is None:
+            if given:
+                raise ConfigError(
+                    f"options apply to the methods {methods_with_options()} only, got {sorted(given)}"
+                )
+            return None
+        known = [f.name for f in dataclasses.fields(self.options)]
+        unknown = set(given) - set(known)
+        if unknown:
+            raise ConfigError(f"unknown {self.name} options {sorted(unknown)}; known: {sorted(known)}")
+        return self.options(**given)
+
+
+_METHODS: dict[str, PlacementMethod] = {}
+
+
+def register_method(method: PlacementMethod) -> PlacementMethod:
+    """Add ``method`` to the registry (its name must be new); returns it."""
+    if method.name in _METHODS:
+        raise ValueError(f"placement method {method.name!r} is already registered")
+    _METHODS[method.name] = method
+    return method
+
+
+def get_method(name: str) -> PlacementMethod:
+    """The registered method ``name``; ConfigError naming the known ones otherwise."""
+    if name not in _METHODS:
+        raise ConfigError(f"method must be one of {method_names()}, got {name!r}")
+    return _METHODS[name]
+
+
+def method_names() -> tuple[str, ...]:
+    """Every registered method, in registration order."""
+    return tuple(_METHODS)
+
+
+def reference_methods() -> tuple[str, ...]:
+    """The reference baselines, in registration order (the first is what reports compare against)."""
+    return tuple(m.name for m in _METHODS.values() if m.reference)
+
+
+def methods_with_options() -> tuple[str, ...]:
+    return tuple(m.name for m in _METHODS.values() if m.options is not None)
+
+
+def method_options(name: str) -> dict[str, Any]:
+    """The options of method ``name`` with their defaults (empty for a method without options)."""
+    opts = get_method(name).options
+    return {} if opts is None else {f.name: f.default for f in dataclasses.fields(opts)}
