@@ -50,7 +50,9 @@ demo-stages: $(STAMP)
 # Test files run in parallel (pytest-xdist: one worker per core, at most 4 — each holds its own JAX
 # compile caches; --dist loadfile keeps a file's module fixtures in one worker). Most of the suite's time
 # is XLA compilation, which is single-threaded: two workers on CI's two cores nearly halve it.
-PYTEST_PAR := -n auto --maxprocesses=4 --dist loadfile
+# --no-loadscope-reorder: files go out in collection order, which tests/conftest.py starts with the
+# heaviest (xdist's default order, most tests first, left the heaviest files to run alone at the end).
+PYTEST_PAR := -n auto --maxprocesses=4 --dist loadfile --no-loadscope-reorder
 test: $(TOOLS)
 	@$(PY) -m pytest -q $(PYTEST_PAR); rc=$$?; \
 	if [ $$rc -eq 5 ]; then echo "make test: pytest collected no tests - treating as an error"; exit 1; fi; \
