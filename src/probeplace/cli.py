@@ -86,7 +86,18 @@ def _cmd_place(args: argparse.Namespace) -> int:
 
     scene = load_scene(args.scene, overrides=scene_overrides_from_args(args))
     budget = "auto" if args.budget == "auto" else _positive_int(args.budget)
+    if args.memory_budget is not None:
+        from .placement import count_for_memory
+        from .probes import BakeConfig, probe_bytes
+
+        if budget != "auto":
+            raise ProbeplaceError("give --budget or --memory-budget, not both")
+        bake = BakeConfig(radiance_res=args.radiance_res, geometry_res=args.geometry_res)
+        budget = count_for_memory(args.memory_budget, probe_bytes(scene, bake))
     refiner = None if args.refiner == "none" else args.refiner
+    region = (
+        None if args.height_band is None else {"height": _number_list(args.height_band, 2, "--height-band")}
+    )
     res = place(
         scene,
         method=args.method,
@@ -96,6 +107,8 @@ def _cmd_place(args: argparse.Namespace) -> int:
         seed=args.seed,
         target=args.target,
         options=_place_options(args.option),
+        clearance=args.clearance,
+        region=region,
     )
     out = Path(args.out)
     save_probe_set(out, res.probes, units_m=scene.unit_m, metadata={**res.metadata, "scene": args.scene})
@@ -120,6 +133,17 @@ def _place_options(items: list[str]) -> dict:
         except (ValueError, SyntaxError):
             out[key.strip()] = text.strip()
     return out
+
+
+def _number_list(text: str, n: int, flag: str) -> list[float]:
+    """``n`` comma-separated numbers of ``flag``."""
+    try:
+        values = [float(x) for x in text.split(",")]
+    except ValueError:
+        values = []
+    if len(values) != n:
+        raise ProbeplaceError(f"{flag} must be {n} comma-separated numbers, got {text!r}")
+    return values
 
 
 def _positive_int(text: str) -> int:
@@ -176,7 +200,28 @@ def _add_place_parser(sub) -> None:
         help="baseline option, repeatable (e.g. -o dims=8,8,8 -o inside=relocate; -o levels=2; "
         "-o dense_probes=512 -o tolerance=0.05); see docs/baselines.md",
     )
-    pl.add_argument("--budget", default="auto", help="'auto' (fewest probes to the target) or a count")
+    pl.add_argument(
+        "--budget", default="auto", help="'auto' (fewest probes to the target) or the exact probe count"
+    )
+    pl.add_argument(
+        "--memory-budget",
+        default=None,
+        metavar="SIZE",
+        help="instead of --budget: the most probes whose baked maps fit in SIZE (e.g. 64MiB) at "
+        "--radiance-res / --geometry-res",
+    )
+    pl.add_argument("--radiance-res", type=int, default=None, help="bake radiance resolution (memory budget)")
+    pl.add_argument("--geometry-res", type=int, default=None, help="bake geometry resolution (memory budget)")
+    pl.add_argument(
+        "--clearance",
+        type=float,
+        default=None,
+        help="smallest probe-to-geometry distance, scene units (default: from the scene's size); nearer "
+        "probes are relocated",
+    )
+    pl.add_argument(
+        "--height-band", default=None, metavar="MIN,MAX", help="keep probes this high above the floor"
+    )
     pl.add_argument("--refiner", default="none", help=", ".join(("none", *REFINERS)))
     pl.add_argument("--objective", default="coverage", choices=OBJECTIVES)
     pl.add_argument("--target", type=float, default=1.0, help="coverage target (default 1.0)")

@@ -92,6 +92,11 @@ BAD = [
     ({"placer": {"method": "random"}}, "placer.method"),
     ({"placer": {"target": 0.0}}, "placer.target"),
     ({"placer": {"n_opt_samples": "many"}}, "placer.n_opt_samples"),
+    ({"placer": {"memory_budget": "12 parsecs"}}, "placer.memory_budget: memory budget must be"),
+    ({"placer": {"memory_budget": "64MiB", "budget": 8}}, "placer.budget: must be 'auto' when"),
+    ({"placer": {"clearance": -1.0}}, "placer.clearance"),
+    ({"placer": {"region": {"height": [2.0, 1.0]}}}, "placer.region.height"),
+    ({"placer": {"region": {"boxes": 3}}}, "placer.region.boxes"),
     ({"refiner": {"name": "newton"}}, "refiner.name"),
     ({"placer": {"method": "grid", "options": {"spacing": 3}}}, "placer.options.spacing"),
     ({"placer": {"method": "skeleton", "options": {"jitter": 0.5}}}, "placer.options.jitter"),
@@ -244,3 +249,26 @@ def test_a_finished_run_from_before_a_new_key_is_still_the_same_run(tmp_path):
     _check_same_config(cfg, tmp_path)
     with pytest.raises(ConfigError, match=r"bake\.moments_res differ"):
         _check_same_config(to_config({"bake": {"moments_res": 8}}), tmp_path)
+
+
+def test_memory_budget_and_valid_space_settings_name_their_runs():
+    """A memory budget, a clearance and a region each get their own run folder (a sweep over them)."""
+    base = run_name(to_config({}))
+    mem = run_name(to_config({"placer": {"memory_budget": "64MiB"}}))
+    assert "__bm64MiB__" in mem and mem != base
+    clear = run_name(to_config({"placer": {"clearance": 0.05}}))
+    band = run_name(to_config({"placer": {"region": {"height": [0.1, 1.5]}}}))
+    assert len({base, mem, clear, band}) == 4 and "clearance=0.05" in clear and "region=" in band
+
+
+def test_memory_budget_counts_probes_at_the_bake_settings(cornell):
+    from probeplace.experiment._run import _placer_budget
+    from probeplace.experiment._schema import bake_config
+    from probeplace.probes import probe_bytes
+
+    cfg = to_config({"placer": {"memory_budget": "1MiB"}, "bake": {"radiance_res": 16}})
+    per_probe = probe_bytes(cornell, bake_config(cfg))
+    assert _placer_budget(cfg, cornell) == 2**20 // per_probe >= 1
+    finer = to_config({"placer": {"memory_budget": "1MiB"}, "bake": {"radiance_res": 32}})
+    assert _placer_budget(finer, cornell) < _placer_budget(cfg, cornell)  # finer maps: fewer probes
+    assert _placer_budget(to_config({"placer": {"budget": 9}}), cornell) == 9

@@ -32,3 +32,36 @@ def test_place_writes_probe_set_and_png(tmp_path):
     assert meta["metadata"]["n_probes"] == probes.capacity <= 8
     assert (tmp_path / "p.png").stat().st_size > 1000
     json.dumps(meta)
+
+
+def test_place_memory_budget_and_height_band(tmp_path):
+    """``--memory-budget`` becomes the count its bake settings allow; ``--height-band`` keeps every probe
+    in the band above the floor; both reach the record."""
+    from probeplace._core import load_probe_set
+    from probeplace.probes import BakeConfig, probe_bytes
+    from probeplace.scene import load_scene
+
+    out = tmp_path / "p.json"
+    argv = ["place", "cornell_box", "--method", "grid", "--memory-budget", "2MiB", "--radiance-res", "32"]
+    assert main([*argv, "--height-band", "100,300", "--out", str(out)]) == 0
+    probes, meta = load_probe_set(out)
+    want = 2**20 * 2 // probe_bytes(load_scene("cornell_box"), BakeConfig(radiance_res=32))
+    y = probes.pos_world[:, 1]
+    assert probes.capacity == meta["metadata"]["n_probes"] == want
+    assert float(y.min()) >= 100.0 and float(y.max()) <= 300.0  # the floor is at y = 0
+    assert meta["metadata"]["valid_space"]["region"]["height"] == [100.0, 300.0]
+
+
+@pytest.mark.parametrize(
+    ("argv", "message"),
+    [
+        (["--memory-budget", "lots"], "memory budget"),
+        (["--memory-budget", "1MiB", "--budget", "4"], "not both"),
+        (["--height-band", "1"], "--height-band must be 2"),
+        (["--clearance", "-1"], "clearance"),
+    ],
+)
+def test_place_bad_budget_and_space_options_are_one_line(argv, message, capsys):
+    assert main(["place", "cornell_box", *argv]) == 2
+    err = capsys.readouterr().err
+    assert message in err and "Traceback" not in err

@@ -66,7 +66,8 @@ def test_shift_keeps_the_grid_fixed_in_the_world(cornell):
 def test_shift_keeps_the_lod_grid_on_its_world_lattice(cornell):
     """Every LOD-grid probe is a cell centre of the box at some level, so its coordinates are half-integer
     multiples of the finest cell from the box corner. With ``shift = −t`` in a scene translated by t they stay
-    on the *untranslated* box's lattice; without it they follow the scene off that lattice."""
+    on the *untranslated* box's lattice; without it they follow the scene off that lattice. (Probes the
+    valid-space step moved off a wall are off every lattice: ``valid_space.n_moved`` counts them.)"""
     lo, hi = scene_box(cornell)
     t = np.array([0.03, 0.0, 0.045]) * (hi - lo)
     base = (2, 2, 2)
@@ -74,45 +75,52 @@ def test_shift_keeps_the_lod_grid_on_its_world_lattice(cornell):
 
     def on_lattice(pos):
         u = 2 * (np.asarray(pos, np.float64) - lo) / fine  # integers on the untranslated lattice
-        return np.abs(u - np.round(u)).max() < 1e-3
+        return np.abs(u - np.round(u)).max(axis=1) < 1e-3
 
     moved = _translated(cornell, t)
     opts = {"base_divisions": base, "levels": 2}
     fixed, meta = _placed(moved, method="lod-grid", options={**opts, "shift": (-t).tolist()})
     follow, _ = _placed(moved, method="lod-grid", options=opts)
-    assert meta["config"]["levels"] == 2 and fixed.pos_world.shape[0] > 8
-    assert on_lattice(fixed.pos_world)
-    assert not on_lattice(follow.pos_world)
+    n, n_moved = fixed.pos_world.shape[0], meta["valid_space"]["n_moved"]
+    assert meta["config"]["levels"] == 2 and n > 8 and n_moved < n / 2
+    assert on_lattice(fixed.pos_world).sum() == n - n_moved
+    assert on_lattice(follow.pos_world).sum() == 0
 
 
 @pytest.mark.slow  # several SDF-classified grids + coverage: ~15 s
-def test_grid_budget_is_the_finest_grid_within_it(cornell):
+def test_grid_budget_starts_from_the_nearest_grid(cornell):
+    """Budget 40: exactly 40 probes, trimmed or filled from the lattice whose active count is nearest 40
+    among the spacing search's lattices (spacing shrinking by 10 %)."""
     probes, meta = _placed(cornell, method="grid", budget=40)
-    assert probes.capacity <= 40
-    # invariant of the spacing search: the next finer lattice (10% smaller spacing) exceeds the budget
+    assert probes.capacity == 40
     from probeplace.placement import grid_dims
 
     lo, hi = scene_box(cornell)
-    dims = tuple(meta["config"]["dims"])
-    spacing = float(np.max(hi - lo))
-    while tuple(grid_dims(lo, hi, spacing)) != dims:
+    counts, spacing = {}, float(np.max(hi - lo))
+    while not counts or max(counts.values()) <= 40:
+        dims = tuple(grid_dims(lo, hi, spacing))
+        counts.setdefault(dims, uniform_probe_grid(cornell, dims=dims, inside="disable").probes.n_active)
         spacing *= 0.9
-    nxt = dims
-    while nxt == dims:
-        spacing *= 0.9
-        nxt = grid_dims(lo, hi, spacing)
-    assert uniform_probe_grid(cornell, dims=nxt, inside="disable").probes.n_active > 40
+    chosen = counts[tuple(meta["config"]["dims"])]
+    assert abs(chosen - 40) == min(abs(c - 40) for c in counts.values())
+    fit = meta["budget_fit"]
+    assert fit["n_before"] - fit["n_trimmed"] + fit["n_filled"] == 40
 
 
 def test_lod_grid_method(cornell):
     probes, meta = _placed(cornell, method="lod-grid", options={"base_divisions": (2, 2, 2), "levels": 2})
     g = lod_probe_grid(cornell, base_divisions=(2, 2, 2), sub_division_level=2)
-    np.testing.assert_array_equal(np.asarray(probes.pos_world), g.positions)
+    same = np.all(np.asarray(probes.pos_world) == g.positions, axis=1)  # all but the relocated probes
+    assert (
+        same.sum() == g.probe_count - meta["valid_space"]["n_moved"] and meta["valid_space"]["n_dropped"] == 0
+    )
     assert sum(meta["lod_levels"]) == g.probe_count == meta["n_probes"]
     small, meta2 = _placed(
         cornell, method="lod-grid", budget=g.probe_count - 1, options={"base_divisions": (2, 2, 2)}
     )
-    assert small.capacity <= g.probe_count - 1 and meta2["config"]["levels"] < 3
+    # the nearest level is level 2 (one probe too many): exactly one trimmed
+    assert small.capacity == g.probe_count - 1 and meta2["config"]["levels"] == 2
+    assert meta2["budget_fit"]["n_trimmed"] == 1
 
 
 VARDIS_OPTS = {"dense_probes": 64, "n_eval": 64, "n_dirs": 64, "spp": 2, "max_depth": 3}
@@ -196,40 +204,6 @@ def test_place_returns_a_typed_result(cornell):
     assert res.refine_converged is None and meta["refined"] is False and "refine_status" not in meta
     assert res.target_reached is None and "target_reached" not in meta  # no automatic search
     json.dumps(meta)
-
-
-def test_a_registered_method_is_placed_through_place(cornell):
-    """A method registers once (name, options, function, label) and ``place`` / ``method_options`` find it."""
-    from dataclasses import dataclass
-
-    from probeplace.placement import PlacementMethod, method_names, method_options, register_method
-    from probeplace.placement._place import finish_lattice
-    from probeplace.placement._registry import _METHODS
-
-    @dataclass(frozen=True)
-    class CentreOptions:
-        lift: float = 0.0
-
-    def place_centre(scene, request, options):
-        lo, hi = scene_box(scene)
-        pos = (0.5 * (lo + hi) + [0.0, options.lift * (hi - lo)[1], 0.0])[None]
-        from probeplace.geometry import build_sdf
-
-        return finish_lattice(
-            scene, request, "centre", pos, sdf=build_sdf(scene), key=None, timings={}, t_all=0.0, info={}
-        )
-
-    register_method(PlacementMethod("centre", place_centre, CentreOptions, "one probe at the centre"))
-    try:
-        assert "centre" in method_names() and method_options("centre") == {"lift": 0.0}
-        res = place(cornell, method="centre", options={"lift": 0.1})
-        assert res.n_probes == 1 and res.metadata["method"] == "centre"
-        with pytest.raises(ConfigError, match="unknown centre options"):
-            place(cornell, method="centre", options={"height": 1.0})
-        with pytest.raises(ValueError, match="already registered"):
-            register_method(PlacementMethod("centre", place_centre))
-    finally:
-        _METHODS.pop("centre")
 
 
 def test_a_caster_object_decides_the_coverage(cornell):

@@ -68,9 +68,13 @@ def _improves(small, name, objective, **kw):
     f = objective_fn(small, objective)
     assert res.history.shape[0] >= 1
     assert np.all(np.isfinite(np.asarray(res.history)))
-    assert int(res.status) in (0, 1)
+    assert int(res.status) in (0, 1)  # cut short (max_steps / n_sweeps below the defaults): OK or MAX_STEPS
     assert np.all(probe_clearance(small, np.asarray(res.pos)) >= float(small.clearance) * 0.99)
     assert float(f(res.pos)) > float(f(pos)) * 1.05
+    # value / start_value: the refiner's objective at the returned / start positions (float32 sums)
+    np.testing.assert_allclose(float(res.value), float(f(res.pos)), rtol=1e-5)
+    np.testing.assert_allclose(float(res.start_value), float(f(pos)), rtol=1e-5)
+    assert res.improved() and res.fitness_gain > 1.05
 
 
 @pytest.mark.parametrize("objective", ["coverage", "wang"])

@@ -30,6 +30,7 @@ from probeplace.probes import (
     load_probes,
     mip_chains,
     path_traced_radiance,
+    probe_bytes,
     save_probes,
 )
 from probeplace.scene import build_scene, make_camera, make_materials
@@ -189,6 +190,9 @@ def test_save_load_round_trip_is_lossless(room, tmp_path, getkey):
         np.testing.assert_array_equal(np.asarray(a), np.asarray(b))
     assert back.bake.to_dict() == lf.bake.to_dict()
     assert back.bake.scene == "test_room" and back.bake.radiance == "custom"
+    # a memory budget divides by probe_bytes: the bytes the baked arrays of one probe really hold
+    held = sum(np.asarray(a).nbytes for a in jax.tree.leaves(lf) if np.ndim(a) and a.shape[0] == 1)
+    assert probe_bytes(room, cfg) == held
     assert int(back.bake.n_sub) == 2 and int(back.bake.radiance_res) == 8
     (tmp_path / "bad.npz").write_bytes(b"not a zip")
     with pytest.raises(ProbeplaceError, match="not a readable"):

@@ -49,6 +49,7 @@ _LAZY = {
         "_octahedral",
     ),
     "load_pyplot": "_plotting",
+    **dict.fromkeys(("host_rng", "stream"), "_random"),
     **dict.fromkeys(("PROBE_SET_FORMAT", "load_probe_set", "save_probe_set"), "_probe_io"),
     **dict.fromkeys(
         (
@@ -98,6 +99,8 @@ if TYPE_CHECKING:  # what static checkers and IDEs see; __getattr__ gives the sa
     from ._probe_io import PROBE_SET_FORMAT as PROBE_SET_FORMAT
     from ._probe_io import load_probe_set as load_probe_set
     from ._probe_io import save_probe_set as save_probe_set
+    from ._random import host_rng as host_rng
+    from ._random import stream as stream
     from ._types import BAKE_SETTINGS_VERSION as BAKE_SETTINGS_VERSION
     from ._types import BakeSettings as BakeSettings
     from ._types import Camera as Camera

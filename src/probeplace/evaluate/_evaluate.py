@@ -202,6 +202,49 @@ def _glossy_breakdown(scene, config: EvalConfig, prim, crn, shading, perfect, im
     }
 
 
+def _eval_images(ref_img: dict, probe: dict, crn_ref_g, perfect_g, view_indep_g) -> dict:
+    """The result's images: references, probe images (``probe``: component → image) and their errors."""
+    images = {
+        "ref_emission": ref_img["emission"],
+        "ref_direct": ref_img["direct"],
+        "ref_diffuse_indirect": ref_img["diffuse_indirect"],
+        "ref_glossy_indirect": crn_ref_g.astype(np.float32),
+        "ref_glossy_indirect_render": ref_img["glossy_indirect"],
+        "ref_full": ref_img["full"],
+        "probe_diffuse_indirect": probe["diffuse_indirect"].astype(np.float32),
+        "probe_glossy_indirect": probe["glossy_indirect"].astype(np.float32),
+        "probe_full": probe["full"].astype(np.float32),
+        "perfect_trace_glossy_indirect": perfect_g.astype(np.float32),
+        # the reference's glossy with the diffuse lobe only where the glossy ray lands: what probes store
+        "ref_glossy_indirect_diffuse_at_hit": view_indep_g.astype(np.float32),
+    }
+    for c in EVAL_COMPONENTS:
+        images[f"error_{c}"] = np.abs(images[f"probe_{c}"] - images[f"ref_{c}"]).astype(np.float32)
+    return images
+
+
+def _run_settings(scene: Scene, lf: LightFieldProbes, view: str, config: EvalConfig, seed: int, prim) -> dict:
+    """The metrics that record what was evaluated and how (scene, view, sizes, samples, tracer, probes)."""
+    return {
+        "scene": scene.name,
+        "view": view,
+        "width": prim.width,
+        "height": prim.height,
+        "spp": config.spp,
+        "glossy_spp": prim.spp,
+        "glossy_ref_spp": config.glossy_ref_spp,
+        "max_depth": config.max_depth,
+        "shading": config.shading,
+        "trace_hierarchy": config.trace.hierarchy,
+        "glossy_filter": config.glossy_filter,
+        "glossy_lod_bias": config.glossy_lod_bias,
+        "seed": seed,
+        "n_probes": int(np.sum(np.asarray(lf.active))),
+        "n_probes_usable": int(np.sum(np.asarray(lf.active) & ~np.asarray(lf.inside))),
+        "probe_first_hit_lobes": None if lf.bake is None else lf.bake.first_hit_lobes,
+    }
+
+
 def score(
     scene: Scene,
     lf: LightFieldProbes,
@@ -228,43 +271,13 @@ def score(
     probe_full = ref_img["emission"] + ref_img["direct"] + probe_d + probe_g
     hit_px = img(prim.valid[:, None].astype(np.float64))[..., 0] > 0
     leak, dark = _light_leak(ref_img["diffuse_indirect"], probe_d, hit_px, config.leak_threshold)
-
-    images = {
-        "ref_emission": ref_img["emission"],
-        "ref_direct": ref_img["direct"],
-        "ref_diffuse_indirect": ref_img["diffuse_indirect"],
-        "ref_glossy_indirect": crn_ref_g.astype(np.float32),
-        "ref_glossy_indirect_render": ref_img["glossy_indirect"],
-        "ref_full": ref_img["full"],
-        "probe_diffuse_indirect": probe_d.astype(np.float32),
-        "probe_glossy_indirect": probe_g.astype(np.float32),
-        "probe_full": probe_full.astype(np.float32),
-        "perfect_trace_glossy_indirect": perfect_g.astype(np.float32),
-        # the reference's glossy with the diffuse lobe only where the glossy ray lands: what probes store
-        "ref_glossy_indirect_diffuse_at_hit": view_indep_g.astype(np.float32),
-    }
-    for c in EVAL_COMPONENTS:
-        images[f"error_{c}"] = np.abs(images[f"probe_{c}"] - images[f"ref_{c}"]).astype(np.float32)
+    probe = {"diffuse_indirect": probe_d, "glossy_indirect": probe_g, "full": probe_full}
+    images = _eval_images(ref_img, probe, crn_ref_g, perfect_g, view_indep_g)
 
     boot = lambda v: bootstrap_ci(v, n_resamples=config.bootstrap_resamples, seed=0)
     rel = lambda a, b: relative_mse(a, b, eps=config.relmse_eps)
     metrics = {
-        "scene": scene.name,
-        "view": view,
-        "width": W,
-        "height": H,
-        "spp": config.spp,
-        "glossy_spp": S,
-        "glossy_ref_spp": config.glossy_ref_spp,
-        "max_depth": config.max_depth,
-        "shading": config.shading,
-        "trace_hierarchy": config.trace.hierarchy,
-        "glossy_filter": config.glossy_filter,
-        "glossy_lod_bias": config.glossy_lod_bias,
-        "seed": seed,
-        "n_probes": int(np.sum(np.asarray(lf.active))),
-        "n_probes_usable": int(np.sum(np.asarray(lf.active) & ~np.asarray(lf.inside))),
-        "probe_first_hit_lobes": None if lf.bake is None else lf.bake.first_hit_lobes,
+        **_run_settings(scene, lf, view, config, seed, prim),
         "mse_glossy_indirect": _mse(probe_g, crn_ref_g),
         "noise_floor_glossy_indirect": floor_g,
         "mse_glossy_indirect_no_crn": _mse(probe_g, ref_img["glossy_indirect"]),

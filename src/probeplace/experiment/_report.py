@@ -323,7 +323,8 @@ def _interp_log(x0: float, pts: list) -> float | None:
     return float(np.exp(np.interp(lx, xs, ys)))
 
 
-def _tables(runs: list[dict], labels: list[str]) -> list[str]:
+def _all_runs_table(runs: list[dict], labels: list[str]) -> list[str]:
+    """The "All runs" section: one row per run with its times, errors, memory and failures."""
     md = []
     md += ["## All runs", ""]
     md += [
@@ -351,73 +352,102 @@ def _tables(runs: list[dict], labels: list[str]) -> list[str]:
             f"| {_fmt(e.get('unresolved_share'), '.4f')} "
             f"| {', '.join(r.get('failures', [])) or 'none'} |"
         )
-    scenes = sorted({r["scene"] for r in runs})
-    for scene in scenes:
-        rs = [r for r in runs if r["scene"] == scene and _mse(r) is not None]
-        grid = [r for r in rs if r["label"] == "grid"]
-        if not rs or not grid:
-            md += [
-                "",
-                f"_{scene}: equal-count / time / quality tables need evaluated runs including `grid`._",
-            ]
+    return md
+
+
+def _equal_count_table(rs, by, labels, scene, g_count: float, g_mse: float) -> list[str]:
+    """Each method's MSE at the grid's probe count (log-log interpolated, else its nearest count)."""
+    md = ["", f"## {scene}: equal probe count ({g_count:g} probes, the grid's count)", ""]
+    black = [v for r in rs if (v := _black_mse(r)) is not None]
+    if black:
+        b = float(np.median(black))
+        md += [
+            f"A black image (no indirect light) scores {b:.3g} here (÷ grid {b / g_mse:.2f}): a method "
+            "above it adds more wrong light than it recovers.",
+            "",
+        ]
+    md += ["| method | MSE glossy ind. at that count | ÷ grid | how |", "|---|---:|---:|---|"]
+    for lab in labels:
+        pts = [(r["n_probes"], _mse(r)) for r in by.get((scene, lab), [])]
+        if not pts:
             continue
-        g_count = float(np.median([r["n_probes"] for r in grid]))
-        g_times = [v for r in grid if (v := _run_s(r)) is not None]
-        g_time = float(np.median(g_times)) if g_times else math.nan
-        g_mse = _interp_log(g_count, [(r["n_probes"], _mse(r)) for r in grid]) or float(
-            np.median([_mse(r) for r in grid])
-        )
-        by = _group(rs)
-        md += ["", f"## {scene}: equal probe count ({g_count:g} probes, the grid's count)", ""]
-        black = [v for r in rs if (v := _black_mse(r)) is not None]
-        if black:
-            b = float(np.median(black))
-            md += [
-                f"A black image (no indirect light) scores {b:.3g} here (÷ grid {b / g_mse:.2f}): a method "
-                "above it adds more wrong light than it recovers.",
-                "",
-            ]
-        md += ["| method | MSE glossy ind. at that count | ÷ grid | how |", "|---|---:|---:|---|"]
-        for lab in labels:
-            pts = [(r["n_probes"], _mse(r)) for r in by.get((scene, lab), [])]
-            if not pts:
-                continue
-            v, how = _interp_log(g_count, pts), "interpolated (log-log)"
-            if v is None:
-                near = min(pts, key=lambda p: abs(math.log(p[0] / g_count)))
-                v, how = near[1], f"nearest count measured: {near[0]}"
-            md.append(f"| {lab} | {_fmt(v)} | {_fmt(v / g_mse, '.2f')} | {how} |")
-        md += [
+        v, how = _interp_log(g_count, pts), "interpolated (log-log)"
+        if v is None:
+            near = min(pts, key=lambda p: abs(math.log(p[0] / g_count)))
+            v, how = near[1], f"nearest count measured: {near[0]}"
+        md.append(f"| {lab} | {_fmt(v)} | {_fmt(v / g_mse, '.2f')} | {how} |")
+    return md
+
+
+def _equal_time_table(rs, by, labels, scene, g_time: float, g_mse: float) -> list[str]:
+    """Each method's best MSE among its runs no slower (placement + bake, no compilation) than the grid."""
+    md = [
+        "",
+        f"## {scene}: equal time (placement + bake run time ≤ {g_time:.1f} s, the grid's time)",
+        "",
+        "Run time without JIT compilation (`place_bake_run_s`): the compilation a sweep's first run "
+        "pays is shared by the runs after it and would otherwise decide this table.",
+        "",
+        *_unsplit_note(rs),
+    ]
+    md += ["| method | best MSE glossy ind. within the time | probes | ÷ grid |", "|---|---:|---:|---:|"]
+    for lab in labels:
+        ok = [r for r in by.get((scene, lab), []) if (v := _run_s(r)) is not None and v <= g_time]
+        if ok:
+            b = min(ok, key=_mse)
+            md.append(f"| {lab} | {_fmt(_mse(b))} | {b['n_probes']} | {_fmt(_mse(b) / g_mse, '.2f')} |")
+        else:
+            times = [v for r in by.get((scene, lab), []) if (v := _run_s(r)) is not None]
+            fastest = min(times, default=math.nan)
+            md.append(f"| {lab} | — (fastest run {fastest:.1f} s) | — | — |")
+    return md
+
+
+def _equal_quality_table(by, labels, scene, g_mse: float) -> list[str]:
+    """Each method's fewest probes reaching the grid's MSE, with that run's time."""
+    md = ["", f"## {scene}: equal quality (MSE glossy ind. ≤ {g_mse:.3g}, the grid's)", ""]
+    md += [
+        "| method | fewest probes reaching it | its placement + bake run s (no compilation) |",
+        "|---|---:|---:|",
+    ]
+    for lab in labels:
+        ok = [r for r in by.get((scene, lab), []) if _mse(r) <= g_mse * (1 + 1e-9)]
+        if ok:
+            b = min(ok, key=lambda r: r["n_probes"])
+            md.append(f"| {lab} | {b['n_probes']} | {_fmt(_run_s(b), '.1f')} |")
+        else:
+            md.append(f"| {lab} | not reached in these runs | — |")
+    return md
+
+
+def _scene_tables(runs: list[dict], labels: list[str], scene: str) -> list[str]:
+    """One scene's equal-count, equal-time and equal-quality tables, all measured against the grid's runs."""
+    rs = [r for r in runs if r["scene"] == scene and _mse(r) is not None]
+    grid = [r for r in rs if r["label"] == "grid"]
+    if not rs or not grid:
+        return [
             "",
-            f"## {scene}: equal time (placement + bake run time ≤ {g_time:.1f} s, the grid's time)",
-            "",
-            "Run time without JIT compilation (`place_bake_run_s`): the compilation a sweep's first run "
-            "pays is shared by the runs after it and would otherwise decide this table.",
-            "",
-            *_unsplit_note(rs),
+            f"_{scene}: equal-count / time / quality tables need evaluated runs including `grid`._",
         ]
-        md += ["| method | best MSE glossy ind. within the time | probes | ÷ grid |", "|---|---:|---:|---:|"]
-        for lab in labels:
-            ok = [r for r in by.get((scene, lab), []) if (v := _run_s(r)) is not None and v <= g_time]
-            if ok:
-                b = min(ok, key=_mse)
-                md.append(f"| {lab} | {_fmt(_mse(b))} | {b['n_probes']} | {_fmt(_mse(b) / g_mse, '.2f')} |")
-            else:
-                times = [v for r in by.get((scene, lab), []) if (v := _run_s(r)) is not None]
-                fastest = min(times, default=math.nan)
-                md.append(f"| {lab} | — (fastest run {fastest:.1f} s) | — | — |")
-        md += ["", f"## {scene}: equal quality (MSE glossy ind. ≤ {g_mse:.3g}, the grid's)", ""]
-        md += [
-            "| method | fewest probes reaching it | its placement + bake run s (no compilation) |",
-            "|---|---:|---:|",
-        ]
-        for lab in labels:
-            ok = [r for r in by.get((scene, lab), []) if _mse(r) <= g_mse * (1 + 1e-9)]
-            if ok:
-                b = min(ok, key=lambda r: r["n_probes"])
-                md.append(f"| {lab} | {b['n_probes']} | {_fmt(_run_s(b), '.1f')} |")
-            else:
-                md.append(f"| {lab} | not reached in these runs | — |")
+    g_count = float(np.median([r["n_probes"] for r in grid]))
+    g_times = [v for r in grid if (v := _run_s(r)) is not None]
+    g_time = float(np.median(g_times)) if g_times else math.nan
+    g_mse = _interp_log(g_count, [(r["n_probes"], _mse(r)) for r in grid]) or float(
+        np.median([_mse(r) for r in grid])
+    )
+    by = _group(rs)
+    return (
+        _equal_count_table(rs, by, labels, scene, g_count, g_mse)
+        + _equal_time_table(rs, by, labels, scene, g_time, g_mse)
+        + _equal_quality_table(by, labels, scene, g_mse)
+    )
+
+
+def _tables(runs: list[dict], labels: list[str]) -> list[str]:
+    """The report's Markdown tables: every run, then per scene the grid-relative comparisons."""
+    md = _all_runs_table(runs, labels)
+    for scene in sorted({r["scene"] for r in runs}):
+        md += _scene_tables(runs, labels, scene)
     return md
 
 

@@ -61,7 +61,8 @@ class RunResult:
 
 def run_name(cfg: ExperimentConfig) -> str:
     """The run folder name: ``cfg.run`` or
-    scene[~offset]__method[+refiner]__b<budget>__s<seed>[__o<placer options>]."""
+    scene[~offset]__method[+refiner]__b<budget or m<memory>>__s<seed>[__clearance=..][__region=..]
+    [__o<placer options>]."""
     if cfg.run:
         return cfg.run
     scene = Path(cfg.scene.name).stem
@@ -69,14 +70,21 @@ def run_name(cfg: ExperimentConfig) -> str:
     if any(float(x) != 0.0 for x in t) or float(cfg.scene.rotate_deg) != 0.0:
         scene += "~t" + ",".join(f"{float(x):g}" for x in t) + f"~r{float(cfg.scene.rotate_deg):g}"
     method = cfg.placer.method + ("" if cfg.refiner.name == "none" else f"+{cfg.refiner.name}")
-    name = f"{scene}__{method}__b{cfg.placer.budget}__s{cfg.seed}"
+    budget = cfg.placer.budget if cfg.placer.memory_budget is None else f"m{cfg.placer.memory_budget}"
+    name = f"{scene}__{method}__b{str(budget).replace(' ', '')}__s{cfg.seed}"
+    for key in ("clearance", "region"):  # each value gets its own run folder, as the options below
+        if getattr(cfg.placer, key) is not None:
+            name += f"__{key}={_option_text(getattr(cfg.placer, key))}"
     if cfg.placer.options:  # e.g. a swept grid offset: each value gets its own run folder
         name += "__o" + ",".join(f"{k}={_option_text(v)}" for k, v in sorted(cfg.placer.options.items()))
     return name
 
 
 def _option_text(value) -> str:
-    """A placer option as folder-name text: sequences joined by ``_``, numbers in ``%g``."""
+    """A placer option as folder-name text: sequences joined by ``_``, numbers in ``%g``, mappings as
+    ``key-value`` pairs."""
+    if isinstance(value, dict):
+        return "_".join(f"{k}-{_option_text(v)}" for k, v in sorted(value.items()))
     if not isinstance(value, str) and hasattr(value, "__iter__"):  # list, tuple, OmegaConf ListConfig
         return "_".join(_option_text(v) for v in value)
     return f"{value:g}" if isinstance(value, float) else str(value)
@@ -350,6 +358,16 @@ def _check_view(cfg: ExperimentConfig, scene) -> None:
         )
 
 
+def _placer_budget(cfg: ExperimentConfig, scene) -> int | str:
+    """``placer.budget``, or the count ``placer.memory_budget`` buys at this run's bake settings."""
+    if cfg.placer.memory_budget is None:
+        return cfg.placer.budget
+    from ..placement import count_for_memory
+    from ..probes import probe_bytes
+
+    return count_for_memory(cfg.placer.memory_budget, probe_bytes(scene, bake_config(cfg)))
+
+
 def _place_stage(cfg: ExperimentConfig, scene, translation, partial: Path, final: Path, timings, metrics):
     """Place (timed), record the placement's figures, write ``probes.json`` and the top view."""
     import jax
@@ -361,13 +379,15 @@ def _place_stage(cfg: ExperimentConfig, scene, translation, partial: Path, final
         placed = place(
             scene,
             method=cfg.placer.method,
-            budget=cfg.placer.budget,
+            budget=_placer_budget(cfg, scene),
             refiner=None if cfg.refiner.name == "none" else cfg.refiner.name,
             objective=cfg.placer.objective,
             seed=cfg.seed,
             target=cfg.placer.target,
             n_opt_samples=cfg.placer.n_opt_samples,
             options=_placer_options(cfg, translation),
+            clearance=cfg.placer.clearance,
+            region=cfg.placer.region,
         )
         jax.block_until_ready(placed.probes)
     probes = placed.probes

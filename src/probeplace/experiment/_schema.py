@@ -51,8 +51,12 @@ class PlacerConfig:
 
     Attributes:
         method: a registered placement method (``placement.METHODS``).
-        budget: ``"auto"`` (fewest probes reaching ``target`` coverage) or a positive probe count.
-        objective: refiner objective, ``coverage`` or ``wang``.
+        budget: ``"auto"`` (fewest probes reaching ``target`` coverage) or the exact probe count.
+        memory_budget: instead of ``budget``, the bytes the baked probes may take (``"64MiB"``): the count
+            is the most probes whose maps fit at this experiment's bake settings (``probes.probe_bytes``).
+        clearance: smallest probe-to-geometry distance, scene units; ``None``: from the scene's size.
+        region: where probes may go, ``{boxes: [[lo, hi], ...], height: [a, b]}``; ``None``: anywhere.
+        objective: refiner objective: ``coverage``, ``wang`` or ``shading`` (docs/placement.md).
         target: coverage target of the automatic budget, in (0, 1].
         n_opt_samples: surface samples of the refiner's problem.
         options: the method's options (``placement.place``'s ``options``, e.g. ``{jitter: 0.5}`` for the
@@ -61,6 +65,9 @@ class PlacerConfig:
 
     method: str = "skeleton"
     budget: Any = "auto"
+    memory_budget: Any = None
+    clearance: Any = None
+    region: Any = None
     objective: str = "coverage"
     target: float = 1.0
     n_opt_samples: int = 1500
@@ -277,7 +284,7 @@ def _check_run(cfg: ExperimentConfig) -> None:
 
 def _check_placer(cfg: ExperimentConfig) -> None:
     """The placement settings, checked where ``place`` checks them (``placement.PlaceRequest``)."""
-    from ..placement import PlaceRequest, method_names, method_options
+    from ..placement import PlaceRequest, Region, method_names, method_options, parse_bytes
 
     p = cfg.placer
     if p.method not in method_names():
@@ -288,9 +295,22 @@ def _check_placer(cfg: ExperimentConfig) -> None:
         "objective": p.objective,
         "target": p.target,
         "n_opt_samples": p.n_opt_samples,
+        "clearance": p.clearance,
+        "region": p.region,
     }
     keys = {**{k: f"placer.{k}" for k in values}, "refiner": "refiner.name"}
+    try:
+        Region.from_config(p.region)  # its messages name the key under region: region.boxes[1][0] ...
+    except ConfigError as e:
+        raise ConfigError(f"placer.{e}") from None
     _rekeyed(PlaceRequest, values, keys)
+    if p.memory_budget is not None:
+        if p.budget != "auto":
+            _fail("placer.budget", "must be 'auto' when placer.memory_budget is given", p.budget)
+        try:
+            parse_bytes(p.memory_budget)
+        except ConfigError as e:
+            raise ConfigError(f"placer.memory_budget: {e}") from None
     known = method_options(p.method)
     for k in p.options or {}:
         if k not in known:

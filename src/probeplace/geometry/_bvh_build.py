@@ -64,6 +64,146 @@ def _segment_bounds(x_lo, x_hi, seg_start, n_seg):
     return np.minimum.reduceat(x_lo, seg_start, axis=0), np.maximum.reduceat(x_hi, seg_start, axis=0)
 
 
+def _level_triangles(order, level_start, nodes, cnt):
+    """Segment layout of the candidate nodes' triangles, which lie contiguously in ``order``.
+
+    Returns ``(seg_start, seg_id, pos, ids)``: each node's first row, each row's node, each row's
+    position in ``order`` and its triangle id (a copy, so the caller may permute it).
+    """
+    # triangles of the candidate nodes, segment by segment (they are contiguous in `order`)
+    seg_start = np.concatenate([[0], np.cumsum(cnt)[:-1]])
+    total = int(cnt.sum())
+    seg_id = np.repeat(np.arange(nodes.size), cnt)
+    pos = np.arange(total) - seg_start[seg_id] + level_start[nodes][seg_id]
+    ids = order[pos]
+    return seg_start, seg_id, pos, ids
+
+
+def _centroid_bins(c, seg_start, seg_id, n_bins):
+    """Bin index of each centroid along each axis over its node's centroid extent (Wald 2007, §3.1)."""
+    c_lo = np.minimum.reduceat(c, seg_start, axis=0)
+    c_hi = np.maximum.reduceat(c, seg_start, axis=0)
+    ext = c_hi - c_lo
+    scale = np.where(ext > 0, n_bins * (1 - 1e-9) / np.where(ext > 0, ext, 1.0), 0.0)
+    b = ((c - c_lo[seg_id]) * scale[seg_id]).astype(np.int64)
+    np.clip(b, 0, n_bins - 1, out=b)  # (total, 3)
+    return b, ext
+
+
+def _bin_stats(b, seg_id, tl, th, n_nodes, n_bins):
+    """Triangle count and box bounds per (node, axis, bin): the inputs of the SAH sweep."""
+    # per (node, axis, bin): count and bounds of the triangles' boxes
+    key = (seg_id[:, None] * 3 + np.arange(3)) * n_bins + b  # (total, 3)
+    n_keys = n_nodes * 3 * n_bins
+    bin_cnt = np.bincount(key.ravel(), minlength=n_keys).reshape(n_nodes, 3, n_bins)
+    bin_lo = np.full((n_keys, 3), np.inf)
+    bin_hi = np.full((n_keys, 3), -np.inf)
+    for ax in range(3):
+        np.minimum.at(bin_lo, key[:, ax], tl)
+        np.maximum.at(bin_hi, key[:, ax], th)
+    bin_lo = bin_lo.reshape(n_nodes, 3, n_bins, 3)
+    bin_hi = bin_hi.reshape(n_nodes, 3, n_bins, 3)
+    return bin_cnt, bin_lo, bin_hi
+
+
+def _sah_best_split(bin_cnt, bin_lo, bin_hi, cnt, n_bins):
+    """Cheapest bin plane of each node by the SAH sweep: ``(best_cost, best_axis, best_s)``.
+
+    ``best_cost`` is inf when no plane leaves triangles on both sides; ``best_s`` is the first bin
+    on the right.
+    """
+    n_nodes = cnt.shape[0]
+    # sweep: left side = bins [0, s), right side = bins [s, n_bins), s = 1..n_bins-1
+    l_cnt = np.cumsum(bin_cnt, axis=2)[:, :, :-1]
+    l_area = _half_area(
+        np.minimum.accumulate(bin_lo, axis=2)[:, :, :-1],
+        np.maximum.accumulate(bin_hi, axis=2)[:, :, :-1],
+    )
+    r_lo = np.minimum.accumulate(bin_lo[:, :, ::-1], axis=2)[:, :, ::-1][:, :, 1:]
+    r_hi = np.maximum.accumulate(bin_hi[:, :, ::-1], axis=2)[:, :, ::-1][:, :, 1:]
+    r_cnt = cnt[:, None, None] - l_cnt
+    r_area = _half_area(r_lo, r_hi)
+    with np.errstate(invalid="ignore"):
+        cost = l_area * l_cnt + r_area * r_cnt
+    cost = np.where((l_cnt > 0) & (r_cnt > 0), cost, np.inf).reshape(n_nodes, -1)
+    best = np.argmin(cost, axis=1)
+    best_cost = cost[np.arange(n_nodes), best]
+    best_axis, best_s = best // (n_bins - 1), best % (n_bins - 1) + 1
+    return best_cost, best_axis, best_s
+
+
+def _sort_fallback(ids, c, seg_id, fallback, median_axis):
+    """Order, in place, the triangles of nodes without a usable bin split by centroid on the widest axis."""
+    total = ids.shape[0]
+    # order the fallback nodes' triangles by centroid on the widest axis first
+    fb_tri = fallback[seg_id]
+    ax_val = c[np.arange(total), median_axis[seg_id]]
+    sub = np.lexsort((ax_val[fb_tri], seg_id[fb_tri]))
+    fb_pos = np.flatnonzero(fb_tri)
+    ids[fb_pos] = ids[fb_pos[sub]]
+
+
+def _split_level(order, cen, t_lo, t_hi, level_start, level_count, level_lo, level_hi, *, sah):
+    """Choose and apply the split of every node of one tree level, reordering ``order`` in place.
+
+    Returns ``(split_nodes, split_at, axis)``: the level-local ids of the nodes that split, the
+    number of triangles each node sends left, and each node's split axis.
+    """
+    n_bins, max_leaf, traversal_cost, intersect_cost = sah
+    n_lvl = level_start.shape[0]
+    axis = np.zeros(n_lvl, np.int64)
+    cand = level_count > 1
+    split_at = np.zeros(n_lvl, np.int64)  # number of triangles going left
+    if not cand.any():
+        return np.zeros(0, np.int64), split_at, axis
+    nodes = np.flatnonzero(cand)
+    cnt = level_count[nodes]
+    seg_start, seg_id, pos, ids = _level_triangles(order, level_start, nodes, cnt)
+    total = ids.shape[0]
+    c = cen[ids]
+    b, ext = _centroid_bins(c, seg_start, seg_id, n_bins)
+    bin_cnt, bin_lo, bin_hi = _bin_stats(b, seg_id, t_lo[ids], t_hi[ids], nodes.size, n_bins)
+    best_cost, best_axis, best_s = _sah_best_split(bin_cnt, bin_lo, bin_hi, cnt, n_bins)
+    node_area = _half_area(level_lo[nodes], level_hi[nodes])
+    sah_split = traversal_cost + intersect_cost * best_cost / np.maximum(node_area, 1e-300)
+    sah_leaf = intersect_cost * cnt
+    binned_ok = np.isfinite(best_cost)
+    do_split = (cnt > max_leaf) | (binned_ok & (sah_split < sah_leaf))
+    # partition: stable sort by (segment, side) keeps each node's triangles contiguous
+    side = np.where(
+        binned_ok[seg_id],
+        b[np.arange(total), best_axis[seg_id]] >= best_s[seg_id],
+        # no usable bin split: median by index along the widest centroid axis
+        (np.arange(total) - seg_start[seg_id]) >= (cnt[seg_id] // 2),
+    )
+    median_axis = np.argmax(ext, axis=1)
+    fallback = ~binned_ok
+    if fallback.any():
+        _sort_fallback(ids, c, seg_id, fallback, median_axis)
+    side = side & do_split[seg_id]
+    perm = np.lexsort((side, seg_id))
+    order[pos] = ids[perm]
+    n_left = np.bincount(seg_id, weights=~side, minlength=nodes.size).astype(np.int64)
+    split_at[nodes] = n_left
+    axis[nodes] = np.where(binned_ok, best_axis, median_axis)
+    return nodes[do_split], split_at, axis
+
+
+def _child_level(order, t_lo, t_hi, level_start, level_count, split_nodes, split_at):
+    """Triangle ranges and bounds of the next level's nodes, in id order (left0, right0, left1, ...)."""
+    # children of this level, in id order: (left0, right0, left1, right1, ...)
+    s0 = level_start[split_nodes]
+    nl = split_at[split_nodes]
+    ch_start = np.stack([s0, s0 + nl], axis=1).ravel()
+    ch_count = np.stack([nl, level_count[split_nodes] - nl], axis=1).ravel()
+    seg_ids = np.repeat(np.arange(ch_start.size), ch_count)
+    tri_pos = np.arange(ch_count.sum()) - np.repeat(np.cumsum(ch_count) - ch_count, ch_count)
+    tri_ids = order[ch_start[seg_ids] + tri_pos]
+    seg_starts = np.cumsum(ch_count) - ch_count
+    ch_lo, ch_hi = _segment_bounds(t_lo[tri_ids], t_hi[tri_ids], seg_starts, ch_start.size)
+    return ch_start, ch_count, ch_lo, ch_hi
+
+
 def build_bvh(
     triangles: np.ndarray,
     *,
@@ -95,6 +235,7 @@ def build_bvh(
     n_tri = tri.shape[0]
     t_lo, t_hi = tri.min(axis=1), tri.max(axis=1)
     cen = 0.5 * (t_lo + t_hi)
+    sah = (n_bins, max_leaf, traversal_cost, intersect_cost)
 
     order = np.arange(n_tri)
     # Node arrays grow level by level (Python lists of per-level arrays, concatenated at the end).
@@ -108,86 +249,12 @@ def build_bvh(
     depth = 0
     while True:
         n_lvl = level_start.shape[0]
+        split_nodes, split_at, axis = _split_level(
+            order, cen, t_lo, t_hi, level_start, level_count, level_lo, level_hi, sah=sah
+        )
+        n_split = split_nodes.size
         left = np.full(n_lvl, -1, np.int64)
         right = np.full(n_lvl, -1, np.int64)
-        axis = np.zeros(n_lvl, np.int64)
-        cand = level_count > 1
-        split_at = np.zeros(n_lvl, np.int64)  # number of triangles going left
-        if cand.any():
-            nodes = np.flatnonzero(cand)
-            cnt = level_count[nodes]
-            # triangles of the candidate nodes, segment by segment (they are contiguous in `order`)
-            seg_start = np.concatenate([[0], np.cumsum(cnt)[:-1]])
-            total = int(cnt.sum())
-            seg_id = np.repeat(np.arange(nodes.size), cnt)
-            pos = np.arange(total) - seg_start[seg_id] + level_start[nodes][seg_id]
-            ids = order[pos]
-            c = cen[ids]
-            c_lo = np.minimum.reduceat(c, seg_start, axis=0)
-            c_hi = np.maximum.reduceat(c, seg_start, axis=0)
-            ext = c_hi - c_lo
-            scale = np.where(ext > 0, n_bins * (1 - 1e-9) / np.where(ext > 0, ext, 1.0), 0.0)
-            b = ((c - c_lo[seg_id]) * scale[seg_id]).astype(np.int64)
-            np.clip(b, 0, n_bins - 1, out=b)  # (total, 3)
-            # per (node, axis, bin): count and bounds of the triangles' boxes
-            key = (seg_id[:, None] * 3 + np.arange(3)) * n_bins + b  # (total, 3)
-            n_keys = nodes.size * 3 * n_bins
-            bin_cnt = np.bincount(key.ravel(), minlength=n_keys).reshape(nodes.size, 3, n_bins)
-            bin_lo = np.full((n_keys, 3), np.inf)
-            bin_hi = np.full((n_keys, 3), -np.inf)
-            tl, th = t_lo[ids], t_hi[ids]
-            for ax in range(3):
-                np.minimum.at(bin_lo, key[:, ax], tl)
-                np.maximum.at(bin_hi, key[:, ax], th)
-            bin_lo = bin_lo.reshape(nodes.size, 3, n_bins, 3)
-            bin_hi = bin_hi.reshape(nodes.size, 3, n_bins, 3)
-            # sweep: left side = bins [0, s), right side = bins [s, n_bins), s = 1..n_bins-1
-            l_cnt = np.cumsum(bin_cnt, axis=2)[:, :, :-1]
-            l_area = _half_area(
-                np.minimum.accumulate(bin_lo, axis=2)[:, :, :-1],
-                np.maximum.accumulate(bin_hi, axis=2)[:, :, :-1],
-            )
-            r_lo = np.minimum.accumulate(bin_lo[:, :, ::-1], axis=2)[:, :, ::-1][:, :, 1:]
-            r_hi = np.maximum.accumulate(bin_hi[:, :, ::-1], axis=2)[:, :, ::-1][:, :, 1:]
-            r_cnt = cnt[:, None, None] - l_cnt
-            r_area = _half_area(r_lo, r_hi)
-            with np.errstate(invalid="ignore"):
-                cost = l_area * l_cnt + r_area * r_cnt
-            cost = np.where((l_cnt > 0) & (r_cnt > 0), cost, np.inf).reshape(nodes.size, -1)
-            best = np.argmin(cost, axis=1)
-            best_cost = cost[np.arange(nodes.size), best]
-            best_axis, best_s = best // (n_bins - 1), best % (n_bins - 1) + 1
-            node_area = _half_area(level_lo[nodes], level_hi[nodes])
-            sah_split = traversal_cost + intersect_cost * best_cost / np.maximum(node_area, 1e-300)
-            sah_leaf = intersect_cost * cnt
-            binned_ok = np.isfinite(best_cost)
-            do_split = (cnt > max_leaf) | (binned_ok & (sah_split < sah_leaf))
-            # partition: stable sort by (segment, side) keeps each node's triangles contiguous
-            side = np.where(
-                binned_ok[seg_id],
-                b[np.arange(total), best_axis[seg_id]] >= best_s[seg_id],
-                # no usable bin split: median by index along the widest centroid axis
-                (np.arange(total) - seg_start[seg_id]) >= (cnt[seg_id] // 2),
-            )
-            median_axis = np.argmax(ext, axis=1)
-            fallback = ~binned_ok
-            if fallback.any():
-                # order the fallback nodes' triangles by centroid on the widest axis first
-                fb_tri = fallback[seg_id]
-                ax_val = c[np.arange(total), median_axis[seg_id]]
-                sub = np.lexsort((ax_val[fb_tri], seg_id[fb_tri]))
-                fb_pos = np.flatnonzero(fb_tri)
-                ids[fb_pos] = ids[fb_pos[sub]]
-            side = side & do_split[seg_id]
-            perm = np.lexsort((side, seg_id))
-            order[pos] = ids[perm]
-            n_left = np.bincount(seg_id, weights=~side, minlength=nodes.size).astype(np.int64)
-            split_nodes = nodes[do_split]
-            split_at[nodes] = n_left
-            axis[nodes] = np.where(binned_ok, best_axis, median_axis)
-        else:
-            split_nodes = np.zeros(0, np.int64)
-        n_split = split_nodes.size
         left[split_nodes] = next_id + 2 * np.arange(n_split)
         right[split_nodes] = next_id + 2 * np.arange(n_split) + 1
         left_l.append(left)
@@ -196,16 +263,9 @@ def build_bvh(
         depth_l.append(np.full(n_lvl, depth, np.int64))
         if n_split == 0:
             break
-        # children of this level, in id order: (left0, right0, left1, right1, ...)
-        s0 = level_start[split_nodes]
-        nl = split_at[split_nodes]
-        ch_start = np.stack([s0, s0 + nl], axis=1).ravel()
-        ch_count = np.stack([nl, level_count[split_nodes] - nl], axis=1).ravel()
-        seg_ids = np.repeat(np.arange(ch_start.size), ch_count)
-        tri_pos = np.arange(ch_count.sum()) - np.repeat(np.cumsum(ch_count) - ch_count, ch_count)
-        tri_ids = order[ch_start[seg_ids] + tri_pos]
-        seg_starts = np.cumsum(ch_count) - ch_count
-        ch_lo, ch_hi = _segment_bounds(t_lo[tri_ids], t_hi[tri_ids], seg_starts, ch_start.size)
+        ch_start, ch_count, ch_lo, ch_hi = _child_level(
+            order, t_lo, t_hi, level_start, level_count, split_nodes, split_at
+        )
         lo_l.append(ch_lo)
         hi_l.append(ch_hi)
         start_l.append(ch_start)

@@ -98,6 +98,77 @@ def _cols(rows, first, n=3, dtype=None):
     return tuple(rows[:, first + k].astype(dtype or rows.dtype) for k in range(n))
 
 
+def _fused_step(items, st, o, d, iv, *, dtype, sentinel, any_hit):
+    """One fused step: one item-row read, slab-tested as a box and Möller–Trumbore-tested as a triangle."""
+    idx, tb, tr, bu, bv, pend = st
+    row = jax.lax.optimization_barrier(items[idx])  # one row gather, not one per column
+    link, tid = _bits_int(row[:, 9]), _bits_int(row[:, 10])
+    is_tri = link < 0
+    entered = _slab(_cols(row, 0, dtype=dtype), _cols(row, 3, dtype=dtype), o, iv, tb)
+    tri_cols = (_cols(row, 0, dtype=dtype), _cols(row, 3, dtype=dtype), _cols(row, 6, dtype=dtype))
+    t, u, v, inside = _moller_trumbore(*tri_cols, o, d)
+    better = is_tri & inside & (t < tb)
+    nxt = jnp.where(is_tri, ~link, jnp.where(entered, idx + 1, link))
+    if any_hit:
+        nxt = jnp.where(better, sentinel, nxt)
+    return (
+        nxt,
+        jnp.where(better, t, tb),
+        jnp.where(better, tid, tr),
+        jnp.where(better, u, bu),
+        jnp.where(better, v, bv),
+        pend,
+    )
+
+
+def _box_step(items, st, o, iv, *, dtype, no_tri):
+    """One deferred box step: slab-test a box row, or park a reached triangle in the lane's free slot."""
+    idx, tb, tr, bu, bv, pend = st
+    row = jax.lax.optimization_barrier(items[idx])
+    link, tid = _bits_int(row[:, 6]), _bits_int(row[:, 7])
+    is_tri = link < 0
+    entered = _slab(_cols(row, 0, dtype=dtype), _cols(row, 3, dtype=dtype), o, iv, tb)
+    park = is_tri & (pend == no_tri)
+    nxt = jnp.where(is_tri, jnp.where(park, ~link, idx), jnp.where(entered, idx + 1, link))
+    return nxt, tb, tr, bu, bv, jnp.where(park, tid, pend)
+
+
+def _tri_step(triangles, st, o, d, *, sentinel, no_tri, any_hit):
+    """One deferred triangle step: test every lane's parked triangle, then empty the slot."""
+    idx, tb, tr, bu, bv, pend = st
+    row = jax.lax.optimization_barrier(triangles[pend])
+    t, u, v, inside = _moller_trumbore(_cols(row, 0), _cols(row, 3), _cols(row, 6), o, d)
+    better = inside & (t < tb)
+    if any_hit:
+        idx = jnp.where(better, sentinel, idx)
+    return (
+        idx,
+        jnp.where(better, t, tb),
+        jnp.where(better, pend, tr),
+        jnp.where(better, u, bu),
+        jnp.where(better, v, bv),
+        jnp.full_like(pend, no_tri),
+    )
+
+
+def _refill(carry, *, start, ray_rows, n, sentinel, no_tri):
+    """Write finished lanes' hits to the output and hand each free lane the next queued ray (wavefront)."""
+    ray, st, nxt, out = carry
+    idx, tb, tr, bu, bv, pend = st
+    finished = (ray >= 0) & (idx == sentinel) & (pend == no_tri)
+    sink = jnp.where(finished, ray, n)  # row n is dropped
+    out = tuple(a.at[sink].set(b, mode="drop") for a, b in zip(out, (tb, tr, bu, bv), strict=True))
+    free = finished | (ray < 0)
+    new = nxt + jnp.cumsum(free, dtype=jnp.int32) - 1
+    take = free & (new < n)
+    ray = jnp.where(free, jnp.where(take, new, -1), ray)
+    safe = jnp.clip(ray, 0, n - 1)
+    idx = jnp.where(free, jnp.where(take, start[safe], sentinel), idx)
+    tb = jnp.where(free, ray_rows[safe, 9], tb)
+    tr = jnp.where(free, -1, tr)
+    return ray, (idx, tb, tr, bu, bv, pend), nxt + jnp.sum(free, dtype=jnp.int32), out
+
+
 def traverse(
     items: Float[Array, "n_total c"],
     triangles: Float[Array, "n_tri1 16"] | None,
@@ -137,77 +208,17 @@ def traverse(
     ray_rows = jnp.concatenate([origins, directions, inv, t_max[:, None]], axis=1)  # (n, 10)
     w = max(1, min(lanes, n))
 
-    def fused_step(st, o, d, iv):
-        idx, tb, tr, bu, bv, pend = st
-        row = jax.lax.optimization_barrier(items[idx])  # one row gather, not one per column
-        link, tid = _bits_int(row[:, 9]), _bits_int(row[:, 10])
-        is_tri = link < 0
-        entered = _slab(_cols(row, 0, dtype=dtype), _cols(row, 3, dtype=dtype), o, iv, tb)
-        tri_cols = (_cols(row, 0, dtype=dtype), _cols(row, 3, dtype=dtype), _cols(row, 6, dtype=dtype))
-        t, u, v, inside = _moller_trumbore(*tri_cols, o, d)
-        better = is_tri & inside & (t < tb)
-        nxt = jnp.where(is_tri, ~link, jnp.where(entered, idx + 1, link))
-        if any_hit:
-            nxt = jnp.where(better, sentinel, nxt)
-        return (
-            nxt,
-            jnp.where(better, t, tb),
-            jnp.where(better, tid, tr),
-            jnp.where(better, u, bu),
-            jnp.where(better, v, bv),
-            pend,
-        )
-
-    def box_step(st, o, d, iv):
-        idx, tb, tr, bu, bv, pend = st
-        row = jax.lax.optimization_barrier(items[idx])
-        link, tid = _bits_int(row[:, 6]), _bits_int(row[:, 7])
-        is_tri = link < 0
-        entered = _slab(_cols(row, 0, dtype=dtype), _cols(row, 3, dtype=dtype), o, iv, tb)
-        park = is_tri & (pend == no_tri)
-        nxt = jnp.where(is_tri, jnp.where(park, ~link, idx), jnp.where(entered, idx + 1, link))
-        return nxt, tb, tr, bu, bv, jnp.where(park, tid, pend)
-
-    def tri_step(st, o, d, iv):
-        idx, tb, tr, bu, bv, pend = st
-        row = jax.lax.optimization_barrier(triangles[pend])
-        t, u, v, inside = _moller_trumbore(_cols(row, 0), _cols(row, 3), _cols(row, 6), o, d)
-        better = inside & (t < tb)
-        if any_hit:
-            idx = jnp.where(better, sentinel, idx)
-        return (
-            idx,
-            jnp.where(better, t, tb),
-            jnp.where(better, pend, tr),
-            jnp.where(better, u, bu),
-            jnp.where(better, v, bv),
-            jnp.full_like(pend, no_tri),
-        )
-
     def round_(st, o, d, iv):
         if schedule == "fused":
             for _ in range(box_steps + 1):
-                st = fused_step(st, o, d, iv)
+                st = _fused_step(items, st, o, d, iv, dtype=dtype, sentinel=sentinel, any_hit=any_hit)
             return st
         for _ in range(box_steps):
-            st = box_step(st, o, d, iv)
-        return tri_step(st, o, d, iv)
+            st = _box_step(items, st, o, iv, dtype=dtype, no_tri=no_tri)
+        return _tri_step(triangles, st, o, d, sentinel=sentinel, no_tri=no_tri, any_hit=any_hit)
 
     def refill(carry):
-        ray, st, nxt, out = carry
-        idx, tb, tr, bu, bv, pend = st
-        finished = (ray >= 0) & (idx == sentinel) & (pend == no_tri)
-        sink = jnp.where(finished, ray, n)  # row n is dropped
-        out = tuple(a.at[sink].set(b, mode="drop") for a, b in zip(out, (tb, tr, bu, bv), strict=True))
-        free = finished | (ray < 0)
-        new = nxt + jnp.cumsum(free, dtype=jnp.int32) - 1
-        take = free & (new < n)
-        ray = jnp.where(free, jnp.where(take, new, -1), ray)
-        safe = jnp.clip(ray, 0, n - 1)
-        idx = jnp.where(free, jnp.where(take, start[safe], sentinel), idx)
-        tb = jnp.where(free, ray_rows[safe, 9], tb)
-        tr = jnp.where(free, -1, tr)
-        return ray, (idx, tb, tr, bu, bv, pend), nxt + jnp.sum(free, dtype=jnp.int32), out
+        return _refill(carry, start=start, ray_rows=ray_rows, n=n, sentinel=sentinel, no_tri=no_tri)
 
     def cond(carry):
         ray, _, nxt, _ = carry

@@ -11,8 +11,8 @@ least one probe as its octahedral map decides it (:func:`binary_visibility`). Th
    unseen samples — the deepest feasible point on the sample's normal from which it is seen head-on
    (:func:`witness_positions`) —, spread over the unseen area by farthest-point sampling, and step 2
    continues;
-4. refinement in between: the chosen probes are refined on the soft union coverage (a
-   :class:`AbstractRefiner`); the refined set is kept only if its binary coverage does not drop;
+4. refinement in between: the chosen probes are refined on the request's soft objective (a
+   :class:`AbstractRefiner`); the refined set is kept only if that objective improved;
 5. *removing*: a probe whose removal keeps the coverage at the target is dropped (least unique area
    first), until none can go. Removing probe j loses exactly its unique area, so this needs no trial
    coverages: per-sample counts and unique owners are updated incrementally.
@@ -41,7 +41,7 @@ import jax.numpy as jnp
 import numpy as np
 from scipy import spatial
 
-from .._core import ConfigError
+from .._core import ConfigError, host_rng
 from ._fitness import PlacementProblem, binary_visibility, probe_clearance, witness_positions
 from ._refine import AbstractRefiner
 from ._seeds import medial_axis_seeds, skeleton_seeds
@@ -51,7 +51,7 @@ log = logging.getLogger(__name__)
 
 @dataclasses.dataclass(frozen=True)
 class AutoResult:
-    """The outcome of :func:`auto_budget` (a host-side result: a frozen dataclass, docs/conventions.md).
+    """The outcome of :func:`auto_budget` (a host-side result: a frozen dataclass, docs/architecture.md).
 
     Attributes:
         pos: chosen probe positions (n, 3).
@@ -249,14 +249,15 @@ def auto_budget(
         candidates = np.concatenate([skeleton_seeds(problem), medial_axis_seeds(problem)])
     seeds_s = time.perf_counter() - t0
     refine = dict(refiner=refiner, refine_problem=refine_problem)
-    res = _search(problem, key=key, candidates=candidates, max_probes=max_probes, **refine, **kw)
+    k_budgeted, k_full, k_pooled = jax.random.split(key, 3)  # one key per search, never shared
+    res = _search(problem, key=k_budgeted, candidates=candidates, max_probes=max_probes, **refine, **kw)
     res.timings["seeds_s"] = seeds_s
     if max_probes is None or res.reached:
         return res
     t0 = time.perf_counter()
-    full = _search(problem, key=key, candidates=candidates, max_probes=None, **kw)
+    full = _search(problem, key=k_full, candidates=candidates, max_probes=None, **kw)
     pool = np.concatenate([full.pos, np.asarray(candidates, np.float32).reshape(-1, 3)])
-    pooled = _search(problem, key=key, candidates=pool, max_probes=max_probes, **refine, **kw)
+    pooled = _search(problem, key=k_pooled, candidates=pool, max_probes=max_probes, **refine, **kw)
     best = pooled if pooled.coverage > res.coverage else res
     timings = {**best.timings, "seeds_s": seeds_s, "pooled_search_s": time.perf_counter() - t0}
     return dataclasses.replace(best, n_candidates=len(pool), timings=timings)
@@ -303,11 +304,6 @@ def _coverable(problem: PlacementProblem, target: float, caster) -> _Coverable:
     target_area = target * total * (1.0 - 1e-9)
     timings = {"visibility_s": 0.0}
     return _Coverable(problem, caster, cols, a_all, a, total, target, target_area, timings)
-
-
-def _search_rng(key: jax.Array) -> np.random.Generator:
-    """Host generator seeded from ``key`` (search subset and gap-candidate spread)."""
-    return np.random.default_rng(np.asarray(jax.random.key_data(key)).ravel()[-1:].astype(np.uint32))
 
 
 def _visibility(cov: _Coverable, p: np.ndarray, c: np.ndarray) -> np.ndarray:
@@ -418,8 +414,10 @@ def _refine_if_no_worse(
     coverage: float,
     key: jax.Array,
 ) -> tuple[np.ndarray, np.ndarray, float, str | None, bool]:
-    """Step 4: refine the chosen set on the soft objective, kept only if its binary coverage does not drop
-    and every probe keeps its clearance; (pos, rows, coverage, refine_status, refined)."""
+    """Step 4: refine the chosen set on the soft objective, kept only if that objective improved
+    (:meth:`RefineResult.improved`: the function optimised is the one judged) and every probe keeps its
+    clearance; (pos, rows, coverage, refine_status, refined). The binary coverage may then drop below
+    the target: step 5 only removes probes while it stays at what was reached."""
     if refiner is None or not len(pos):
         return pos, rows, coverage, None, False
     t1 = time.perf_counter()
@@ -428,7 +426,8 @@ def _refine_if_no_worse(
     new_pos = np.asarray(res.pos, np.float32)
     new_rows = _visibility(cov, new_pos, np.arange(len(cov.cols)))
     new_cov = _coverage_of(new_rows, cov.a)
-    if new_cov >= coverage and np.all(probe_clearance(cov.problem, new_pos) >= float(cov.problem.clearance)):
+    clear = np.all(probe_clearance(cov.problem, new_pos) >= float(cov.problem.clearance))
+    if res.improved() and np.all(np.isfinite(new_pos)) and clear:
         pos, rows, coverage, refined = new_pos, new_rows, new_cov, True
     cov.timings["refine_s"] = time.perf_counter() - t1
     return pos, rows, coverage, refine_status, refined
@@ -485,7 +484,8 @@ def _search(
     _check_search_options(target, search_samples)
     cand = _feasible_candidates(problem, candidates)
     cov = _coverable(problem, target, caster)
-    rng = _search_rng(key)
+    k_rng, k_refine = jax.random.split(key)  # the host generator's and the refiner's, apart
+    rng = host_rng(k_rng)
     limit = None if max_probes is None else int(max_probes)
     t_greedy = time.perf_counter()
     # 1. coarse pass: every candidate scored on a spread subset of the coverable samples
@@ -502,7 +502,7 @@ def _search(
     coverage = _coverage_of(rows, cov.a)
     # Refinement between adding and removing: keep it only if the binary coverage does not drop.
     pos, rows, coverage, refine_status, refined = _refine_if_no_worse(
-        cov, refiner, refine_problem, pos, rows, coverage, key
+        cov, refiner, refine_problem, pos, rows, coverage, k_refine
     )
     # Removal: drop probes (least unique area first) while the coverage stays at the target.
     pos, rows = _drop_redundant(cov, pos, rows, coverage, curve)

@@ -14,13 +14,13 @@ import time
 from dataclasses import asdict, dataclass
 from typing import Any
 
-import jax
 import numpy as np
 
-from .._core import ConfigError, Scene, scene_box
+from .._core import ConfigError, Scene, host_rng, scene_box, stream
 from ..geometry import build_sdf
+from ._finish import finish_lattice
 from ._fitness import make_problem
-from ._place import _refining_grid_dims, finish_lattice, smallest_full_grid, timed
+from ._place import _refining_grid_dims, smallest_full_grid, timed
 from ._registry import PlacementMethod, PlaceRequest, PlaceResult, register_method
 
 _ZERO3 = (0.0, 0.0, 0.0)
@@ -103,19 +103,21 @@ def _shift(method: str, options) -> np.ndarray:
 
 
 def _grid_dims_for_budget(scene: Scene, budget: int, inside: str, sdf) -> tuple:
-    """Finest uniform grid (spacing shrinking by 10%) with at most ``budget`` active probes; ``sdf`` (the
-    scene's, built once by the caller) classifies the probes inside geometry for every candidate."""
+    """The uniform grid (spacing shrinking by 10%) whose active probe count is nearest ``budget`` (the
+    coarser on a tie); ``_finish`` then trims or fills it to exactly ``budget``. ``sdf`` (the scene's,
+    built once by the caller) classifies the probes inside geometry for every candidate."""
     from ._uniform import uniform_probe_grid
 
     lo, hi = scene_box(scene)
-    best = (1, 1, 1)
+    best, best_n = (1, 1, 1), None
     for dims in _refining_grid_dims(lo, hi):
         if int(np.prod(dims)) > 64 * budget + 64:
             return best
         n = uniform_probe_grid(scene, dims=dims, inside=inside, sdf=sdf).probes.n_active
-        if n > budget:
+        if best_n is None or abs(n - budget) < abs(best_n - budget):
+            best, best_n = dims, n
+        if n >= budget:
             return best
-        best = dims
 
 
 def place_grid(scene: Scene, request: PlaceRequest, options: GridOptions) -> PlaceResult:
@@ -125,13 +127,13 @@ def place_grid(scene: Scene, request: PlaceRequest, options: GridOptions) -> Pla
 
     shift = _shift("grid", options)
     t_all, timings = time.perf_counter(), {}
-    k_g, _, _, k_r = jax.random.split(jax.random.key(request.seed), 4)
+    k_g = stream(request.seed, "grid")
     sdf = _build_sdf(scene, timings)  # PERF: once, for every candidate grid's inside test and the coverage
     lo, hi = scene_box(scene)
     t0 = time.perf_counter()
     dims = options.dims
     if dims is None and request.budget == "auto":
-        n, _, dims = smallest_full_grid(make_problem(scene, key=k_g, grid=sdf))
+        n, _, dims = smallest_full_grid(make_problem(scene, key=stream(request.seed, "coverage"), grid=sdf))
         if n < 0:
             raise ConfigError("no uniform grid up to 4096 probes reaches full coverage; give a budget")
     elif dims is None:
@@ -156,18 +158,19 @@ def place_grid(scene: Scene, request: PlaceRequest, options: GridOptions) -> Pla
         "n_relocated": r.n_relocated,
     }
     pos = np.asarray(r.probes.pos_world)[np.asarray(r.probes.active)]
+    valid = options.inside != "keep"  # "keep" shows the classic failure: no relocation either
     return finish_lattice(
-        scene, request, "grid", pos, sdf=sdf, key=k_r, timings=timings, t_all=t_all, info=info
+        scene, request, "grid", pos, sdf=sdf, timings=timings, t_all=t_all, info=info, valid=valid
     )
 
 
 def place_lod_grid(scene: Scene, request: PlaceRequest, options: LodGridOptions) -> PlaceResult:
-    """Yang 2023's mixed-resolution grid at ``levels``, or with a budget the finest level within it."""
+    """Yang 2023's mixed-resolution grid at ``levels``, or with a budget the level (≤ ``levels``) whose probe
+    count is nearest it (the coarser on a tie), then trimmed or filled to it by ``_finish``."""
     from ._lod_grid import lod_probe_grid
 
     shift = _shift("lod-grid", options)
     t_all, timings = time.perf_counter(), {}
-    k_r = jax.random.split(jax.random.key(request.seed), 4)[3]
     sdf = _build_sdf(scene, timings)
     lo, hi = scene_box(scene)
     t0 = time.perf_counter()
@@ -175,22 +178,23 @@ def place_lod_grid(scene: Scene, request: PlaceRequest, options: LodGridOptions)
     if base is None:
         base = tuple(int(max(1, round(4 * e / np.max(hi - lo)))) for e in hi - lo)
     budget = request.budget
-    levels = list(range(int(options.levels) + 1)) if budget != "auto" else [int(options.levels)]
-    for lvl in levels[::-1]:
-        g = lod_probe_grid(
+    levels = range(int(options.levels) + 1) if budget != "auto" else [int(options.levels)]
+    g = None
+    for lvl in levels:
+        level = lod_probe_grid(
             scene, base_divisions=tuple(base), sub_division_level=lvl, bounds=(lo + shift, hi + shift)
         )
-        if budget == "auto" or g.probe_count <= int(budget):
+        if g is None or abs(level.probe_count - int(budget)) < abs(g.probe_count - int(budget)):
+            g = level
+        if budget == "auto" or level.probe_count >= int(budget):
             break
-    if budget != "auto" and g.probe_count > int(budget):
-        raise ConfigError(f"even the base grid {tuple(base)} has {g.probe_count} > {budget} probes")
     timings["build_s"] = time.perf_counter() - t0
     info = {
         "config": {**asdict(options), "base_divisions": list(base), "levels": int(g.sub_division_level)},
         "lod_levels": np.bincount(g.levels, minlength=g.sub_division_level + 1).tolist(),
     }
     return finish_lattice(
-        scene, request, "lod-grid", g.positions, sdf=sdf, key=k_r, timings=timings, t_all=t_all, info=info
+        scene, request, "lod-grid", g.positions, sdf=sdf, timings=timings, t_all=t_all, info=info
     )
 
 
@@ -215,7 +219,7 @@ def place_vardis(scene: Scene, request: PlaceRequest, options: VardisOptions) ->
 
     shift = _shift("vardis", options)
     t_all, timings = time.perf_counter(), {}
-    k_g, k_v, k_e, k_r = jax.random.split(jax.random.key(request.seed), 4)
+    k_g, k_v, k_e = (stream(request.seed, f"vardis-{n}") for n in ("dense", "values", "eval-points"))
     sdf = _build_sdf(scene, timings)
     t0 = time.perf_counter()
     dense = _dense_set(scene, options, shift, k_g)
@@ -243,13 +247,14 @@ def place_vardis(scene: Scene, request: PlaceRequest, options: VardisOptions) ->
         dense,
         values,
         pts,
-        target=None if auto else max(4, min(int(request.budget), len(dense))),
+        target=None if auto else min(int(request.budget), len(dense)),
         tolerance=float(o.tolerance) if auto else None,
         error=o.error,
         weights=o.weights,
         per_iteration=o.per_iteration,
         lazy=bool(o.lazy),
         progress=bool(o.progress),
+        tet_seed=int(host_rng(stream(request.seed, "vardis-tet")).integers(2**31)),
     )
     timings["build_s"] = time.perf_counter() - t0
     info = {
@@ -259,8 +264,17 @@ def place_vardis(scene: Scene, request: PlaceRequest, options: VardisOptions) ->
         "vardis_iterations": res.n_iterations,
         "vardis_history": {"count": res.history_count.tolist(), "error": res.history_error.tolist()},
     }
+    spare = np.delete(dense, res.keep, axis=0)  # the removed dense probes: the first to fill with
     return finish_lattice(
-        scene, request, "vardis", dense[res.keep], sdf=sdf, key=k_r, timings=timings, t_all=t_all, info=info
+        scene,
+        request,
+        "vardis",
+        dense[res.keep],
+        sdf=sdf,
+        timings=timings,
+        t_all=t_all,
+        info=info,
+        spare=spare,
     )
 
 

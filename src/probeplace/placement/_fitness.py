@@ -1,4 +1,4 @@
-"""Placement fitness: Wang et al. 2019 Eq. 1–2 and a union-coverage objective, soft and binary.
+"""Placement fitness: Wang et al. 2019 Eq. 1–2, union coverage and a shading proxy, soft and binary.
 
 The "global visibility atlas" of Wang §3.2 is, here, the scene's area-stratified surface samples
 (:func:`probeplace.geometry.sample_surface`): sample i stands for a patch of area aᵢ with normal nᵢ.
@@ -34,6 +34,17 @@ d̄ₖ is divided by the scene diagonal L, so d̄ₖ ∈ [0, 1] and w₂ is dime
 
 **Union coverage**: C(P) = Σᵢ aᵢ/A · (1 − Πₖ (1 − Vᵢₖ)), a noisy-OR: a sample seen by three probes is
 not three times as covered (DESIGN.md), and C ∈ [0, 1] is the soft share of area seen.
+
+**Shading** (:func:`shading_objective`): how well the best probe can stand in for a sample's incident
+light. Per sample i and probe k, q_ik = max(0, cos θ_ik) · 1/(1 + d_ik²/s²) · V_ik, θ the angle between
+the sample normal and the direction to the probe, d the distance, s = L/8 and V the soft visibility:
+irradiance probes reproduce a surface's shading best when one sits in front of it (cos θ: a probe seen at
+grazing angle samples the light on the wrong side of the surface) and near it (the solid angle a patch
+subtends at the probe falls as 1/d²; the 1 + d²/s² form stays finite at d → 0 and is 1/2 at d = s). The
+best probe counts, not the sum — a renderer interpolates the nearest probes, it does not add them — taken
+softly by the Boltzmann operator Σₖ qₖ softmaxₖ(q/t) (t = 0.05: ≤ max q, exactly q for one probe,
+smooth), then the area-weighted mean over coverable samples. In [0, 1]; unlike coverage it keeps
+rewarding better positions after every sample is seen.
 
 Samples that no feasible probe can see head-on (the floor under a block, a block's underside, a flat roof
 at the top of the box, the inside of slits thinner than the probe clearance) are *not coverable*
@@ -452,6 +463,37 @@ def coverage_objective(
     """Soft union coverage in [0, 1] (module docstring); differentiable in ``pos``."""
     active = jnp.ones(pos.shape[0], bool) if active is None else active
     return coverage_from_columns(problem, _columns(problem, pos).vis, active)
+
+
+#: Shading falloff scale s as a fraction of the scene diagonal, and the soft-max temperature t.
+SHADING_FALLOFF = 1.0 / 8.0
+SHADING_TEMPERATURE = 0.05
+
+
+def shading_column(problem: PlacementProblem, p: Float[Array, "3"]) -> Float[Array, " n"]:
+    """q_i of ONE probe: max(0, cos θ)·1/(1 + d²/s²)·V (module docstring); differentiable in ``p``."""
+    dtype = p.dtype
+    col = probe_column(problem, p)
+    d2 = jnp.sum((problem.position.astype(dtype) - p[None, :]) ** 2, axis=-1)
+    s = problem.diag.astype(dtype) * jnp.asarray(SHADING_FALLOFF, dtype)
+    return jnp.maximum(col.omega, 0.0) * col.vis / (1.0 + d2 / (s * s))
+
+
+def shading_from_columns(problem: PlacementProblem, q: Array, active: Array) -> Float[Array, ""]:
+    """Σᵢ aᵢ/A Σₖ qᵢₖ softmaxₖ(qᵢₖ/t) over active probes (module docstring)."""
+    dtype = q.dtype
+    t = jnp.asarray(SHADING_TEMPERATURE, dtype)
+    logits = jnp.where(active[:, None], q / t, jnp.asarray(-1e30, dtype))  # inactive: weight 0
+    soft = jnp.sum(jax.nn.softmax(logits, axis=0) * jnp.where(active[:, None], q, 0.0), axis=0)
+    return jnp.sum(problem.weight.astype(dtype) * soft)
+
+
+def shading_objective(
+    problem: PlacementProblem, pos: Float[Array, "n_probes 3"], active: Bool[Array, " n_probes"] | None = None
+) -> Float[Array, ""]:
+    """Shading-quality proxy in [0, 1] (module docstring); differentiable in ``pos``."""
+    active = jnp.ones(pos.shape[0], bool) if active is None else active
+    return shading_from_columns(problem, jax.vmap(lambda p: shading_column(problem, p))(pos), active)
 
 
 # ----------------------------------------------------------------------------------------------------

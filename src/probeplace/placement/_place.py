@@ -1,8 +1,8 @@
 """``place``: scene + method + budget (+ refiner) → :class:`PlaceResult`, and a top-view plot.
 
 Methods come from the registry (``_registry``); this module registers the skeleton-seeded ones
-(``skeleton``, ``medial``, ``skeleton+medial``: Wang 2019 seeds and the automatic budget search) and holds
-the steps the lattice methods (``_baselines``) share: binary coverage and the optional refinement.
+(``skeleton``, ``medial``, ``skeleton+medial``: Wang 2019 seeds and the automatic budget search). Every
+method ends in ``_finish`` (valid space, exact budget, coverage, refinement).
 """
 
 from __future__ import annotations
@@ -12,13 +12,13 @@ import time
 from pathlib import Path
 
 import jax
-import jax.numpy as jnp
 import numpy as np
 
-from .._core import ConfigError, ProbeSet, Scene, load_pyplot
+from .._core import Scene, load_pyplot, stream
 from ..geometry import AbstractRayCaster, build_sdf
 from ._auto import auto_budget
-from ._fitness import FitnessConfig, binary_coverage, binary_visibility, make_problem, probe_clearance
+from ._finish import coverage_context, make_usable, probe_set, refine_problem
+from ._fitness import FitnessConfig, binary_coverage, binary_visibility, probe_clearance
 from ._grid import grid_dims, uniform_grid
 from ._refine import get_refiner
 from ._registry import PlacementMethod, PlaceRequest, PlaceResult, get_method, register_method
@@ -38,6 +38,8 @@ def place(
     config: FitnessConfig | None = None,
     caster: str | AbstractRayCaster | None = "auto",
     options: dict | None = None,
+    clearance: float | None = None,
+    region: dict | None = None,
 ) -> PlaceResult:
     """Place probes in ``scene``.
 
@@ -45,13 +47,18 @@ def place(
         scene: the scene.
         method: a registered method (:func:`method_names`): ``skeleton`` (SDF skeleton seeds), ``medial``
             (ball shrinking) or ``skeleton+medial``, searched for the fewest probes; or a baseline
-            (docs/baselines.md): ``grid`` (uniform grid; budget = max probes, ``"auto"`` = smallest
-            full-coverage grid), ``lod-grid`` (Yang 2023; budget = max probes over levels) or ``vardis``
-            (Vardis 2021 simplification of a dense grid; budget = target count, ``"auto"`` = error tolerance).
-        budget: ``"auto"`` (fewest probes reaching ``target`` coverage) or a maximum probe count.
+            (docs/baselines.md): ``grid`` (uniform grid; a budget starts from the lattice whose usable
+            count is nearest, ``"auto"`` = smallest full-coverage grid), ``lod-grid`` (Yang 2023; the
+            level whose count is nearest the budget) or ``vardis`` (Vardis 2021 simplification of a dense
+            grid down to the budget, ``"auto"`` = error tolerance).
+        budget: ``"auto"`` (fewest probes reaching ``target`` coverage) or the exact number of usable
+            probes: the method's own set is trimmed (least unique coverage first) or filled (farthest
+            valid point first) to it (``_budget``).
         refiner: registry name (:data:`REFINERS`) or ``None``; refines on the soft ``objective`` with
-            ``n_opt_samples`` surface samples and is kept only if binary coverage does not drop.
-        objective: ``coverage`` or ``wang``.
+            ``n_opt_samples`` surface samples and is kept only if that objective improved
+            (``RefineResult.improved``) and every probe stays usable.
+        objective: the refiner's objective, ``coverage``, ``wang`` or ``shading``; the refined set is kept
+            only when it improved.
         seed: PRNG seed (samples, refinement).
         target: coverage target of the search.
         n_opt_samples: samples of the refiner's problem.
@@ -61,6 +68,9 @@ def place(
             object (any ``geometry.AbstractRayCaster``: its ``occluded_host`` decides).
         options: the method's options (its registered options dataclass, e.g. ``grid``'s ``dims``);
             must be empty for a method without options.
+        clearance: smallest free distance from probes to geometry (``None``: from the scene's size);
+            probes nearer are relocated along the SDF gradient, else dropped (``_valid``).
+        region: where probes may go: ``{"boxes": [[lo, hi], ...], "height": [a, b]}`` (``_valid.Region``).
 
     Returns:
         :class:`PlaceResult`: the probes, coverage, timings, refinement status and the method's record
@@ -71,7 +81,9 @@ def place(
             n_opt_samples (:class:`PlaceRequest`).
     """
     m = get_method(method)
-    request = PlaceRequest(budget, refiner, objective, seed, target, n_opt_samples, config, caster)
+    request = PlaceRequest(
+        budget, refiner, objective, seed, target, n_opt_samples, config, caster, clearance, region
+    )
     return m.place_fn(scene, request, m.parse_options(options))
 
 
@@ -83,19 +95,19 @@ def _place_seeded(
     r = request
     t_all = time.perf_counter()
     timings: dict[str, float] = {}
-    k_s, k_o, k_r = jax.random.split(jax.random.key(r.seed), 3)
     grid = timed(timings, "sdf_s", build_sdf, scene)
-    problem = timed(timings, "problem_s", make_problem, scene, key=k_s, grid=grid, config=r.config)
+    cov = timed(timings, "problem_s", coverage_context, scene, r, grid)
+    problem = cov.problem
     cand = timed(timings, "seeds_s", _seed_candidates, problem, seeds)
     ref, opt_problem = None, None
     if r.refiner is not None:
         ref = get_refiner(r.refiner, objective=r.objective)
-        opt_problem = _refine_problem(scene, k_o, grid, r)
-    vis_caster = _search_caster(scene, r.caster)
+        opt_problem = refine_problem(scene, r, grid)
+    vis_caster = cov.caster
     t0 = time.perf_counter()
     res = auto_budget(
         problem,
-        key=k_r,
+        key=stream(r.seed, "search"),
         target=r.target,
         refiner=ref,
         refine_problem=opt_problem,
@@ -105,14 +117,19 @@ def _place_seeded(
     )
     timings["search_s"] = time.perf_counter() - t0
     timings.update({f"search_{k}": v for k, v in res.timings.items()})
+    t0 = time.perf_counter()
+    pos, record = make_usable(scene, r, res.pos, sdf=grid, cov=cov, spare=cand)
+    changed = pos.shape != res.pos.shape or not np.array_equal(pos, res.pos)
+    coverage = cov.coverage(pos) if changed else res.coverage
+    timings["usable_s"] = time.perf_counter() - t0
     timings["total_s"] = time.perf_counter() - t_all
-    clear = probe_clearance(problem, res.pos)
+    clear = probe_clearance(problem, pos)
     return PlaceResult(
-        probes=_probe_set(res.pos, method),
+        probes=probe_set(pos, method),
         method=method,
         request=r,
-        coverage=res.coverage,
-        visibility=_visibility_name(vis_caster),
+        coverage=coverage,
+        visibility=cov.visibility_name,
         timings=timings,
         refine_status=res.refine_status,
         refined=bool(res.refined) if res.refine_status is not None else False,
@@ -123,6 +140,7 @@ def _place_seeded(
             "target": r.target,
             "n_candidates": res.n_candidates,
             "coverage_curve": res.curve,
+            **record,
         },
     )
 
@@ -161,99 +179,6 @@ def timed(timings: dict, name: str, fn, /, *args, **kwargs):
     out = fn(*args, **kwargs)
     timings[name] = time.perf_counter() - t0
     return out
-
-
-def _refine_problem(scene: Scene, key, grid, request: PlaceRequest):
-    """The refiner's (smaller) problem: ``n_opt_samples`` samples, 16 march steps unless a config is given."""
-    config = FitnessConfig(n_steps=16) if request.config is None else request.config
-    return make_problem(scene, key=key, grid=grid, n_samples=request.n_opt_samples, config=config)
-
-
-def _probe_set(pos, method: str) -> ProbeSet:
-    return ProbeSet(pos_world=jnp.asarray(pos), active=jnp.ones(len(pos), bool), method=method)
-
-
-def _visibility_name(caster) -> str:
-    return "sdf" if caster is None else type(caster).__name__
-
-
-def _search_caster(scene: Scene, caster: str | AbstractRayCaster | None):
-    """The exact caster of the binary visibility (PERF: Embree occlusion rays), or None (SDF tracer). A
-    caster object is used as given; the strings pick one ("auto": Embree, else the SDF tracer — a rule of
-    its own: the SDF tracer, not ``make_caster``'s BVH, is the fallback here)."""
-    if isinstance(caster, AbstractRayCaster):
-        return caster
-    if caster in (None, "sdf"):
-        return None
-    if caster not in ("auto", "embree"):
-        raise ConfigError(f"caster must be 'auto', 'embree', 'sdf' or None, got {caster!r}")
-    from ..geometry import EmbreeUnavailableError, make_caster
-
-    try:
-        return make_caster(scene, "embree")
-    except EmbreeUnavailableError:
-        if caster == "embree":
-            raise
-        return None
-
-
-def finish_lattice(
-    scene: Scene,
-    request: PlaceRequest,
-    method: str,
-    pos,
-    *,
-    sdf,
-    key,
-    timings: dict,
-    t_all: float,
-    info: dict,
-) -> PlaceResult:
-    """The common end of the lattice methods: binary coverage of ``pos`` (the same visibility as the
-    skeleton search, so coverages compare like for like), then the optional refiner on the coverage
-    objective (Vardis 2021 §4's "global optimiser as a last step", with ``key``), kept only if coverage
-    does not drop."""
-    pos = np.asarray(pos, np.float32)
-    t0 = time.perf_counter()
-    cov_problem = make_problem(scene, key=jax.random.key(request.seed), grid=sdf)
-    vis_caster = _search_caster(scene, request.caster)
-
-    def coverage_of_pos(p: np.ndarray) -> float:
-        return binary_coverage(cov_problem, binary_visibility(cov_problem, p, caster=vis_caster))
-
-    coverage = coverage_of_pos(pos)
-    timings["coverage_s"] = time.perf_counter() - t0
-    refined, status = False, None
-    if request.refiner is not None:
-        t0 = time.perf_counter()
-        problem = make_problem(
-            scene, key=key, grid=sdf, n_samples=request.n_opt_samples, config=FitnessConfig(n_steps=16)
-        )
-        refiner = get_refiner(request.refiner, objective=request.objective)
-        out = refiner.refine(problem, jnp.asarray(pos), key=key)
-        status, new = out.status_message(), np.asarray(out.pos, np.float32)
-        new_cov = coverage_of_pos(new)
-        if np.all(np.isfinite(new)) and new_cov >= coverage:
-            pos, coverage, refined = new, new_cov, True
-        timings["refine_s"] = time.perf_counter() - t0
-    timings["total_s"] = time.perf_counter() - t_all
-    return PlaceResult(
-        probes=_probe_set(pos, method),
-        method=method,
-        request=request,
-        coverage=coverage,
-        visibility=_visibility_name(vis_caster),
-        timings=timings,
-        refine_status=status,
-        refined=refined,
-        info=info,
-    )
-
-
-def coverage_of(scene: Scene, pos: np.ndarray, *, seed: int = 0) -> float:
-    """Binary coverage of given positions at the default sample density (helper for comparisons)."""
-    problem = make_problem(scene, key=jax.random.key(seed))
-    return binary_coverage(problem, binary_visibility(problem, pos))
 
 
 def _refining_grid_dims(lo: np.ndarray, hi: np.ndarray):

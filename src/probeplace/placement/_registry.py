@@ -22,15 +22,19 @@ class PlaceRequest:
     """What ``place`` asks of every method (all but the method's own options).
 
     Attributes:
-        budget: ``"auto"`` or a maximum probe count.
+        budget: ``"auto"`` or the exact count of usable probes (``_budget``).
         refiner: refiner registry name or ``None``.
-        objective: the refiner's soft objective, ``coverage`` or ``wang``.
+        objective: the refiner's soft objective, ``coverage``, ``wang`` or ``shading``.
         seed: PRNG seed.
         target: coverage target of the automatic budget.
         n_opt_samples: surface samples of the refiner's problem.
         config: fitness parameters (``FitnessConfig``) or ``None`` for the defaults.
         caster: binary visibility of the coverage: ``"auto"``, ``"embree"``, ``"sdf"``, ``None`` or a caster
             object (any ``geometry.AbstractRayCaster``, used as given).
+        clearance: smallest free distance from a probe to geometry, scene units; ``None``: derived from
+            the scene (``_valid.default_clearance``). Probes nearer are relocated, else dropped.
+        region: where probes may go (``_valid.Region.from_config``: ``{"boxes": [...], "height": [a, b]}``);
+            ``None``: the whole scene box.
     """
 
     budget: int | str = "auto"
@@ -41,6 +45,8 @@ class PlaceRequest:
     n_opt_samples: int = 1500
     config: Any = None
     caster: str | AbstractRayCaster | None = "auto"
+    clearance: float | None = None
+    region: Any = None
 
     def __post_init__(self):
         """The checks of ``place``'s arguments (the experiment runner builds a request to run them too)."""
@@ -58,6 +64,12 @@ class PlaceRequest:
         n = self.n_opt_samples
         if isinstance(n, bool) or not isinstance(n, int) or n < 1:
             raise ConfigError(f"n_opt_samples must be a positive integer, got {n!r}")
+        c = self.clearance
+        if c is not None and (isinstance(c, bool) or not isinstance(c, (int, float)) or not c >= 0):
+            raise ConfigError(f"clearance must be a non-negative distance (scene units) or None, got {c!r}")
+        from ._valid import Region
+
+        Region.from_config(self.region)  # its errors name the bad key, before any work
 
 
 @dataclass(frozen=True)

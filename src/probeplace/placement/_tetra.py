@@ -248,30 +248,30 @@ class TetMesh:
         touch = touch | frozenset(int(u) for u in repl)
         return RemovalPlan(int(v), points, idx, w, point_tet, new_tets, touch)
 
-    def plan_removals(self, vs) -> list[RemovalPlan]:
-        """:meth:`plan_removal` for many vertices, the geometry vectorised across them (same plans)."""
-        vs = [int(v) for v in vs]
-        plans: list[RemovalPlan | None] = [None] * len(vs)
-        work = []  # (slot, v, star, link, in_star, near, candidate tets)
-        for i, v in enumerate(vs):
-            star = sorted(self.vert_tets[v])
-            link = self.link(v)
-            in_star = np.array(sorted(set().union(*(self.tet_pts[t] for t in star))), np.int64)
-            near = np.array(sorted(self.near_pts[v]), np.int64)
-            if len(in_star) == 0 and len(near) == 0:
-                e = np.zeros(0, np.int64)
-                touch = frozenset(link.tolist())
-                plans[i] = RemovalPlan(v, e, np.zeros((0, 4), np.int64), np.zeros((0, 4)), e, None, touch)
-                continue
-            cand = np.zeros((0, 4), np.int64)
-            if len(link) >= 4 and star:
-                try:
-                    cand = link[Delaunay(self.pos[link]).simplices]
-                except QhullError:  # flat link: its points fall back to the nearest probe
-                    pass
-            work.append((i, v, np.asarray(star, np.int64), link, in_star, near, cand))
-        if not work:
-            return plans  # type: ignore[return-value]
+    def _removal_work(self, v: int):
+        """Removal inputs of ``v`` (star, link, star points, nearest-probe points, candidate cavity tets);
+        its finished plan instead when it has no points to re-interpolate."""
+        star = sorted(self.vert_tets[v])
+        link = self.link(v)
+        in_star = np.array(sorted(set().union(*(self.tet_pts[t] for t in star))), np.int64)
+        near = np.array(sorted(self.near_pts[v]), np.int64)
+        if len(in_star) == 0 and len(near) == 0:
+            e = np.zeros(0, np.int64)
+            touch = frozenset(link.tolist())
+            return RemovalPlan(v, e, np.zeros((0, 4), np.int64), np.zeros((0, 4)), e, None, touch)
+        cand = np.zeros((0, 4), np.int64)
+        if len(link) >= 4 and star:
+            try:
+                cand = link[Delaunay(self.pos[link]).simplices]
+            except QhullError:  # flat link: its points fall back to the nearest probe
+                pass
+        return v, np.asarray(star, np.int64), link, in_star, near, cand
+
+    def _keep_star_tets(self, work: list) -> tuple[np.ndarray, np.ndarray]:
+        """Step 1 of :meth:`plan_removals`: each vertex's candidate tets whose centroid lies in its star.
+
+        Returns the kept tets of every work item, concatenated, and how many each item kept.
+        """
         nw = len(work)
         # 1. keep the candidate tetrahedra whose centroid lies in the star (pairs within one vertex)
         kc = np.array([len(w[6]) for w in work])
@@ -287,9 +287,14 @@ class TetMesh:
             ok = (lam.min(-1) >= -BARY_EPS) & ~flat[j_pair]
             keep = np.bincount(i_pair, weights=ok, minlength=len(cand_all)) > 0
         seg_cand = np.repeat(np.arange(nw), kc)
-        new_all = cand_all[keep]
-        nc = np.bincount(seg_cand[keep], minlength=nw)
-        n_off = np.concatenate([[0], np.cumsum(nc)])
+        return cand_all[keep], np.bincount(seg_cand[keep], minlength=nw)
+
+    def _locate_in_new_tets(self, work: list, new_all: np.ndarray, nc: np.ndarray):
+        """Step 2 of :meth:`plan_removals`: locate each vertex's star points in its own new tetrahedra.
+
+        Returns ``(tet_of, w_in, a_off)``: per point its tet (a row of ``new_all``, −1 outside) and
+        barycentric weights, and the offsets of each work item's points.
+        """
         # 2. locate the star's points in the new tetrahedra
         ac = np.array([len(w[4]) for w in work])
         a_all = np.concatenate([w[4] for w in work])
@@ -309,28 +314,55 @@ class TetMesh:
             tet_of[ia[sel]] = jn[sel]
             wv = np.clip(lam[sel], 0.0, None)
             w_in[ia[sel]] = wv / np.maximum(wv.sum(1, keepdims=True), 1e-300)
+        return tet_of, w_in, a_off
+
+    def _assemble_plan(
+        self, v, link, in_star, near, t_loc, w_loc, new_k, off, alive_ids, tree
+    ) -> RemovalPlan:
+        """Step 3 of :meth:`plan_removals`: one vertex's plan; points left outside its new tets take the
+        nearest alive probe other than ``v``."""
+        inside = t_loc >= 0
+        out = np.concatenate([in_star[~inside], near])
+        points = np.concatenate([in_star[inside], out])
+        m = int(inside.sum())
+        idx = np.zeros((len(points), 4), np.int64)
+        w = np.zeros((len(points), 4))
+        idx[:m] = new_k[t_loc[inside] - off]
+        w[:m] = w_loc[inside]
+        repl = np.zeros(0, np.int64)
+        if len(out):
+            nn = alive_ids[tree.query(self.pts[out], k=min(2, len(alive_ids)))[1].reshape(len(out), -1)]
+            repl = np.where(nn[:, 0] == v, nn[:, -1], nn[:, 0])
+            idx[m:, 0], w[m:, 0] = repl, 1.0
+        point_tet = np.concatenate([t_loc[inside] - off, np.full(len(out), -1, np.int64)])
+        touch = frozenset(link.tolist()) | frozenset(repl.tolist())
+        return RemovalPlan(v, points, idx, w, point_tet, new_k, touch)
+
+    def plan_removals(self, vs) -> list[RemovalPlan]:
+        """:meth:`plan_removal` for many vertices, the geometry vectorised across them (same plans)."""
+        vs = [int(v) for v in vs]
+        plans: list[RemovalPlan | None] = [None] * len(vs)
+        work = []  # (slot, v, star, link, in_star, near, candidate tets)
+        for i, v in enumerate(vs):
+            item = self._removal_work(v)
+            if isinstance(item, RemovalPlan):
+                plans[i] = item
+            else:
+                work.append((i, *item))
+        if not work:
+            return plans  # type: ignore[return-value]
+        new_all, nc = self._keep_star_tets(work)
+        n_off = np.concatenate([[0], np.cumsum(nc)])
+        tet_of, w_in, a_off = self._locate_in_new_tets(work, new_all, nc)
         # 3. nearest alive replacement (other than the removed vertex) for points left outside
         alive_ids = np.flatnonzero(self.alive)
         tree = cKDTree(self.pos[alive_ids])
         for k, (i, v, _star, link, in_star, near, _cand) in enumerate(work):
-            t_loc = tet_of[a_off[k] : a_off[k + 1]]
-            inside = t_loc >= 0
-            out = np.concatenate([in_star[~inside], near])
-            points = np.concatenate([in_star[inside], out])
-            m = int(inside.sum())
-            idx = np.zeros((len(points), 4), np.int64)
-            w = np.zeros((len(points), 4))
+            pts = slice(a_off[k], a_off[k + 1])
             new_k = new_all[n_off[k] : n_off[k + 1]]
-            idx[:m] = new_k[t_loc[inside] - n_off[k]]
-            w[:m] = w_in[a_off[k] : a_off[k + 1]][inside]
-            repl = np.zeros(0, np.int64)
-            if len(out):
-                nn = alive_ids[tree.query(self.pts[out], k=min(2, len(alive_ids)))[1].reshape(len(out), -1)]
-                repl = np.where(nn[:, 0] == v, nn[:, -1], nn[:, 0])
-                idx[m:, 0], w[m:, 0] = repl, 1.0
-            point_tet = np.concatenate([t_loc[inside] - n_off[k], np.full(len(out), -1, np.int64)])
-            touch = frozenset(link.tolist()) | frozenset(repl.tolist())
-            plans[i] = RemovalPlan(v, points, idx, w, point_tet, new_k, touch)
+            plans[i] = self._assemble_plan(
+                v, link, in_star, near, tet_of[pts], w_in[pts], new_k, n_off[k], alive_ids, tree
+            )
         return plans  # type: ignore[return-value]
 
     def apply(self, plan: RemovalPlan) -> set[int]:

@@ -26,14 +26,19 @@ from __future__ import annotations
 
 import dataclasses
 
-import equinox as eqx
 import jax
 import jax.numpy as jnp
 import numpy as np
 
 from .._core import ConfigError, ProbeSet, Scene, scene_box
-from ..geometry import SDFGrid, build_sdf, lookup_sdf, sdf_value, sdf_value_and_grad
+from ..geometry import SDFGrid, build_sdf, lookup_sdf
 from ._grid import grid_dims, uniform_grid
+
+# The relocation lives with the rest of valid-space handling (docs/placement.md "Valid space"); re-exported
+# here for the grid below and for the modules and tests that import it from this one.
+from ._valid import _fibonacci_directions as _fibonacci_directions
+from ._valid import _relocate as _relocate
+from ._valid import _relocate_points as _relocate_points
 
 INSIDE_CHOICES = ("keep", "disable", "relocate")
 
@@ -97,92 +102,6 @@ def lattice(
         z, y, x = np.meshgrid(axes[2], axes[1], axes[0], indexing="ij")
         pos = np.stack([x.ravel(), y.ravel(), z.ravel()], axis=1)
     return (pos + off * step).astype(np.float32), d, step  # type: ignore[return-value]
-
-
-def _fibonacci_directions(n: int) -> np.ndarray:
-    i = np.arange(n) + 0.5
-    z = 1.0 - 2.0 * i / n
-    r = np.sqrt(1.0 - z * z)
-    phi = np.pi * (1.0 + 5**0.5) * i
-    return np.stack([r * np.cos(phi), r * np.sin(phi), z], axis=1).astype(np.float32)
-
-
-def _relocate(
-    sdf: SDFGrid, pos: np.ndarray, clearance: float, max_steps: int, lo: np.ndarray, hi: np.ndarray
-) -> tuple[np.ndarray, np.ndarray]:
-    """Move points to the nearest point with ``d > clearance`` inside [lo, hi]; (positions, reached).
-
-    Two candidates, the closer valid one wins:
-
-    * gradient steps by the missing distance, ``p ← p + (target − d)·∇d/|∇d|`` (DDGI-style): in the
-      SDF's exact band (|∇d| ≈ 1) one step lands at the nearest free point;
-    * a search along 128 Fibonacci directions at radii growing by half a voxel (the first radius at which
-      some direction is free and inside the box, the freest direction there): deep inside thick solids
-      the SDF is a flat lower bound (docs/sdf.md) whose gradient is zero or does not point at the
-      nearest surface.
-
-    ``target`` = 1.5 × clearance, so a landing point has margin against interpolation error.
-    """
-    target = jnp.float32(1.5 * clearance)
-    h = jnp.float32(0.5) * sdf.voxel_size.astype(jnp.float32)
-    n_radii = max(1, int(np.ceil(float(np.linalg.norm(hi - lo)) / float(h))))
-    p, ok = _relocate_points(
-        sdf,
-        jnp.asarray(pos, jnp.float32),
-        target,
-        jnp.float32(clearance),
-        h,
-        jnp.asarray(_fibonacci_directions(128)),
-        jnp.asarray(lo, jnp.float32),
-        jnp.asarray(hi, jnp.float32),
-        jnp.int32(n_radii),
-        max_steps,
-    )
-    return np.asarray(p, np.float32), np.asarray(ok)
-
-
-# Module level, values as arguments (only ``max_steps`` static): a new scene, clearance or grid reuses the
-# compilation of an equal probe count instead of retracing a closure per call.
-@eqx.filter_jit
-def _relocate_points(sdf, pos, target, clearance, h, dirs, lo_c, hi_c, n_radii, max_steps: int):
-    value = jax.vmap(lambda q: sdf_value(sdf, q))
-
-    def in_box(q):
-        return jnp.all((q >= lo_c[None, :]) & (q <= hi_c[None, :]), axis=-1)
-
-    def search(p):
-        def cond(state):
-            k, found, _ = state
-            return (~found) & (k <= n_radii)
-
-        def body(state):
-            k, _, _ = state
-            cand = p[None, :] + (k.astype(jnp.float32) * h) * dirs
-            v = jnp.where(in_box(cand), value(cand), -jnp.inf)
-            best = jnp.argmax(v)
-            return k + 1, v[best] > target, cand[best]
-
-        _, found, q = jax.lax.while_loop(cond, body, (jnp.int32(1), jnp.bool_(False), p))
-        return q, found
-
-    def newton(p):
-        def body(_, p):
-            d, g = sdf_value_and_grad(sdf, p)
-            gn = jnp.sqrt(jnp.sum(g * g))
-            ok = (d <= clearance) & (gn > 1e-6)
-            return jnp.where(ok, p + (target - d) / jnp.where(ok, gn, 1.0) * g, p)
-
-        q = jax.lax.fori_loop(0, max_steps, body, p)
-        return q, (sdf_value(sdf, q) > clearance) & in_box(q[None, :])[0]
-
-    def one(p):
-        qn, okn = newton(p)
-        qs, oks = search(p)
-        dn = jnp.where(okn, jnp.sum((qn - p) ** 2), jnp.inf)
-        ds = jnp.where(oks, jnp.sum((qs - p) ** 2), jnp.inf)
-        return jnp.where(dn <= ds, qn, qs), okn | oks
-
-    return jax.vmap(one)(pos)
 
 
 def uniform_probe_grid(

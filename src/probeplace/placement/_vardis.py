@@ -350,18 +350,19 @@ class _Scorer:
         return np.concatenate(deltas).astype(np.float64), errs
 
 
-def tet_positions(positions: np.ndarray, tet_jitter: float) -> np.ndarray:
-    """Positions the tetrahedralisation uses: a deterministic perturbation of ``tet_jitter`` × the mean
-    spacing breaks the co-spherical quadruples of grids (Delaunay is otherwise not unique)."""
+def tet_positions(positions: np.ndarray, tet_jitter: float, tet_seed: int = 0) -> np.ndarray:
+    """Positions the tetrahedralisation uses: a perturbation of ``tet_jitter`` × the mean spacing, drawn
+    from ``tet_seed`` (the run's ``"vardis-tet"`` stream in ``place``), breaks the co-spherical quadruples
+    of grids (Delaunay is otherwise not unique); the same seed gives the same tetrahedralisation."""
     pos = np.asarray(positions, np.float64)
     if tet_jitter <= 0:
         return pos
     ext = np.ptp(pos, axis=0)
     spacing = float(np.prod(np.maximum(ext, 1e-12 * ext.max())) / len(pos)) ** (1 / 3)
-    return pos + tet_jitter * spacing * np.random.default_rng(0).uniform(-1.0, 1.0, pos.shape)
+    return pos + tet_jitter * spacing * np.random.default_rng(tet_seed).uniform(-1.0, 1.0, pos.shape)
 
 
-def _setup(positions, values, points, error, n_dirs, weights, tet_jitter):
+def _setup(positions, values, points, error, n_dirs, weights, tet_jitter, tet_seed=0):
     pos = np.asarray(positions, np.float64)
     vals = np.asarray(values, np.float64)
     pts = np.asarray(points, np.float64)
@@ -377,7 +378,7 @@ def _setup(positions, values, points, error, n_dirs, weights, tet_jitter):
         raise ConfigError("probe positions must be distinct")
     wc = _weights(weights)
     feat = error_features(vals, error, n_dirs)
-    mesh = TetMesh(tet_positions(pos, tet_jitter), pts)
+    mesh = TetMesh(tet_positions(pos, tet_jitter, tet_seed), pts)
     ref = np.einsum("pk,pkmc->pmc", mesh.w, feat[mesh.idx])
     lum = np.einsum("pk,pk->p", mesh.w, (vals[:, 0] * Y00 @ YCOCG.T)[:, 0][mesh.idx])
     floor = max(1e-3 * float(np.mean(np.abs(lum))), 1e-30)
@@ -534,6 +535,7 @@ def vardis_simplify(
     weights="chrominance",
     per_iteration: int | float = 1,
     tet_jitter: float = 1e-3,
+    tet_seed: int = 0,
     lazy: bool = False,
     progress: bool = False,
 ) -> VardisResult:
@@ -552,6 +554,7 @@ def vardis_simplify(
         per_iteration: probes removed per iteration at most: an int, or a fraction (0, 1) of the current
             count; > 1 removes an independent set (module docstring). 1 is the paper's loop.
         tet_jitter: relative perturbation of the tetrahedralisation positions (:func:`tet_positions`).
+        tet_seed: seed of that perturbation.
         lazy: lazy greedy — after a removal, the candidates it affects keep their old score (marked
             stale) and are re-scored only when one reaches the head of the ranking. Exact when scores only
             grow after neighbouring removals; an approximation otherwise (``False``: re-score them all).
@@ -567,7 +570,7 @@ def vardis_simplify(
     from tqdm.auto import tqdm
 
     t0 = time.perf_counter()
-    mesh, scorer = _setup(positions, values, points, error, n_dirs, weights, tet_jitter)
+    mesh, scorer = _setup(positions, values, points, error, n_dirs, weights, tet_jitter, tet_seed)
     stop = 4 if target is None else int(target)
     timings = {"setup_s": time.perf_counter() - t0}
     t0 = time.perf_counter()

@@ -11,6 +11,7 @@ from ._bake import bake_probes as bake_probes
 from ._bake import check_bake_settings as check_bake_settings
 from ._bake import default_radiance_res as default_radiance_res
 from ._bake import path_traced_radiance as path_traced_radiance
+from ._bake import probe_bytes as probe_bytes
 from ._filter import distance_moments as distance_moments
 from ._filter import irradiance_map as irradiance_map
 from ._filter import mip_chains as mip_chains

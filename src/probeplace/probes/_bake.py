@@ -286,6 +286,20 @@ class BakeConfig:
             raise ConfigError(f"BakeConfig.quality must be positive, got {self.quality!r}")
 
 
+def probe_bytes(scene: Scene, config: BakeConfig) -> int:
+    """Bytes one baked probe holds at ``config`` (its maps as :class:`LightFieldProbes` stores them: float32
+    radiance, emission, normal, distance, irradiance and moments with their one-texel borders, the distance
+    min/max MIP chains, the back-face bytes, position and flags): what a memory budget divides by
+    (``placement._budget.count_for_memory``)."""
+    res = config.radiance_res or default_radiance_res(scene, quality=config.quality)
+    geo = config.geometry_res or res
+    floats = 2 * (res + 2) ** 2 * 3  # radiance, emission
+    floats += (geo + 2) ** 2 * (3 + 1)  # normal, distance
+    floats += (config.irradiance_res + 2) ** 2 * 3 + (config.moments_res + 2) ** 2 * 2
+    floats += 2 * sum((geo >> k) ** 2 for k in range(1, geo.bit_length()))  # MIPs R/2 … 1, min and max
+    return 4 * (floats + 3) + (geo + 2) ** 2 + 2  # + position; + back-face and active/inside bytes
+
+
 def default_radiance_res(scene: Scene, *, quality: float = 1.0) -> int:
     """Radiance-map resolution so that a texel's footprint at the typical probe-to-wall distance is about
     one surface-sample spacing (the scene's own feature scale), rounded to a power of two in [16, 128].

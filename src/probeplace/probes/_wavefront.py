@@ -192,13 +192,30 @@ def _serve(need, block: int, fn, outs):
     return jax.lax.while_loop(lambda c: c[0] * block < count, body, (jnp.int32(0), outs))[1]
 
 
-def _step(tr: LightFieldTracer, lanes: _Lanes, block: int, block_fb: int) -> _Lanes:
-    """ONE step of every lane (module docstring); the index's pick runs ``block`` lanes at a time, the
-    fallback search ``block_fb``."""
-    b = lanes.ray.shape[0]
-    rows = jnp.arange(b)
-    running_fn = jax.vmap(_segment_running)
+def _fallback_search(tr: LightFieldTracer, lanes: _Lanes, select, block_fb: int) -> _Lanes:
+    """Step 1b: lanes whose index is spent pick among the probes that see the last free point."""
+    to_fb = select & jax.vmap(lambda f, c: _wants_fallback(tr, f, c))(lanes.from_index, lanes.rs)
 
+    def fallback_rows(idx):
+        picked = (lanes.x, lanes.p_idx, lanes.from_index)
+        x, p_idx, from_index = _take(picked, idx)
+        origin, direction, t_end, rs = _take((lanes.origin, lanes.direction, lanes.t_end, lanes.rs), idx)
+        p_fb = jax.vmap(lambda x, v: _seeing_probe(tr, x, v))(x, rs.visited)
+        return _choose(tr, origin, direction, t_end, rs, p_idx, from_index, p_fb)
+
+    keys_fb = ("p", "found", "from_fb", "o", "bounds", "k")
+    with jax.named_scope("wf_fallback"):
+        return lanes._replace(
+            **_serve(to_fb, block_fb, fallback_rows, {k: getattr(lanes, k) for k in keys_fb})
+        )
+
+
+def _select(tr: LightFieldTracer, lanes: _Lanes, block: int, block_fb: int):
+    """Step 1: pick a probe for every lane that needs one and split it into octant pieces.
+
+    Returns ``(lanes, fresh, end_probe)``: ``fresh`` marks lanes with a new probe to march (its march
+    carry reset), ``end_probe`` lanes whose pick left nothing to march.
+    """
     # 1. Select: the index's pick for every lane that needs a probe, then the search for probes that see
     # x for those whose index is spent; each decides the probe and its pieces (``_choose``). Both run
     # only where needed (``_serve``).
@@ -216,26 +233,17 @@ def _step(tr: LightFieldTracer, lanes: _Lanes, block: int, block_fb: int) -> _La
     with jax.named_scope("wf_pick"):
         lanes = lanes._replace(**_serve(select, block, pick_rows, {k: getattr(lanes, k) for k in keys}))
     if use_fb:
-        to_fb = select & jax.vmap(lambda f, c: _wants_fallback(tr, f, c))(lanes.from_index, lanes.rs)
-
-        def fallback_rows(idx):
-            picked = (lanes.x, lanes.p_idx, lanes.from_index)
-            x, p_idx, from_index = _take(picked, idx)
-            origin, direction, t_end, rs = _take((lanes.origin, lanes.direction, lanes.t_end, lanes.rs), idx)
-            p_fb = jax.vmap(lambda x, v: _seeing_probe(tr, x, v))(x, rs.visited)
-            return _choose(tr, origin, direction, t_end, rs, p_idx, from_index, p_fb)
-
-        keys_fb = ("p", "found", "from_fb", "o", "bounds", "k")
-        with jax.named_scope("wf_fallback"):
-            lanes = lanes._replace(
-                **_serve(to_fb, block_fb, fallback_rows, {k: getattr(lanes, k) for k in keys_fb})
-            )
+        lanes = _fallback_search(tr, lanes, select, block_fb)
     fresh = select & lanes.found & (lanes.k < 4)
     probe0 = (*jax.vmap(_probe_state)(lanes.rs.t), *lanes.carry[4:])
     lanes = lanes._replace(carry=_where(fresh, probe0, lanes.carry))
     # A probe with nothing to march (none found, or every piece empty) ends at once.
     end_probe = select & ~fresh
+    return lanes, fresh, end_probe
 
+
+def _piece_start(tr: LightFieldTracer, lanes: _Lanes, rows, fresh):
+    """Step 2: start the piece of lanes with a fresh probe or a finished piece; returns (lanes, start, tb)."""
     # 2. Piece start: a new probe's first piece, or the next piece of the previous step's probe.
     start = fresh | (lanes.phase == PIECE)
     ta = lanes.bounds[rows, jnp.minimum(lanes.k, 3)]
@@ -246,28 +254,38 @@ def _step(tr: LightFieldTracer, lanes: _Lanes, block: int, block_fb: int) -> _La
         )
     new = dict(s=pc.s, a_u=pc.a_u, a_v=pc.a_v, du=pc.du, span=span, go=go, seg_steps=seg_steps, carry=init)
     lanes = lanes._replace(**_where(start, new, {k: getattr(lanes, k) for k in new}))
+    return lanes, start, tb
 
+
+def _march(tr: LightFieldTracer, lanes: _Lanes, start, tb):
+    """Step 3: one march step for every marching lane; returns (new march carry, marching mask)."""
     # 3. March (a lane that started its piece above marches in the same step).
     marching = start | (lanes.phase == MARCH)
     pc = _Piece(lanes.o, lanes.direction, lanes.s, lanes.a_u, lanes.a_v, lanes.du)
-    running = marching & running_fn(lanes.go, tb, lanes.seg_steps, lanes.carry)
+    running = marching & jax.vmap(_segment_running)(lanes.go, tb, lanes.seg_steps, lanes.carry)
     with jax.named_scope("wf_march"):
         stepped = jax.vmap(lambda *a: _march_step(tr, *a))(
             lanes.p, pc, tb, lanes.span, lanes.rs.t, lanes.carry
         )
-    carry = _where(running, stepped, lanes.carry)
+    return _where(running, stepped, lanes.carry), marching
 
+
+def _piece_end(tr: LightFieldTracer, lanes: _Lanes, carry, marching, tb):
+    """Step 4: close the pieces that stopped; returns (lanes, ended, last_piece) for the probe's end."""
     # 4. Piece end: the next non-empty piece (started next step), or the probe's end. ``go`` is true for
     # every piece a lane marches (``_next_piece``), so the state the piece started from is not needed.
-    ended = marching & ~running_fn(lanes.go, tb, lanes.seg_steps, carry)
+    ended = marching & ~jax.vmap(_segment_running)(lanes.go, tb, lanes.seg_steps, carry)
     with jax.named_scope("wf_piece_end"):
         state = jax.vmap(_segment_end)(lanes.go, tb, lanes.seg_steps, carry, carry[:4])
         k_next = jax.vmap(lambda *a: _next_piece(tr, *a))(lanes.bounds, lanes.k + 1, state[0])
     lanes = lanes._replace(
         carry=_where(ended, (*state, *carry[4:]), carry), k=jnp.where(ended, k_next, lanes.k)
     )
-    end_probe = end_probe | (ended & (k_next >= 4))
+    return lanes, ended, ended & (k_next >= 4)
 
+
+def _probe_end(tr: LightFieldTracer, lanes: _Lanes, marching, ended, end_probe) -> _Lanes:
+    """Step 5: the many-probe loop's update for lanes whose probe ended, and every lane's next phase."""
     # 5. Probe end: the many-probe loop's update; the ray continues (another probe) or is done.
     pst, pt, psteps, ptexel = lanes.carry[:4]
     probe_out = (pst, jnp.where(pst == MISS, lanes.t_end, pt), psteps, ptexel)  # as ``trace_probe``
@@ -286,6 +304,19 @@ def _step(tr: LightFieldTracer, lanes: _Lanes, block: int, block_fb: int) -> _La
     phase = jnp.where(marching, jnp.where(ended, jnp.int32(PIECE), jnp.int32(MARCH)), lanes.phase)
     phase = jnp.where(end_probe, jnp.where(rs.st == UNKNOWN, jnp.int32(SELECT), jnp.int32(DONE)), phase)
     return lanes._replace(rs=_where(end_probe, rs, lanes.rs), phase=phase)
+
+
+def _step(tr: LightFieldTracer, lanes: _Lanes, block: int, block_fb: int) -> _Lanes:
+    """ONE step of every lane (module docstring); the index's pick runs ``block`` lanes at a time, the
+    fallback search ``block_fb``."""
+    b = lanes.ray.shape[0]
+    rows = jnp.arange(b)
+    lanes, fresh, end_probe = _select(tr, lanes, block, block_fb)
+    lanes, start, tb = _piece_start(tr, lanes, rows, fresh)
+    carry, marching = _march(tr, lanes, start, tb)
+    lanes, ended, last_piece = _piece_end(tr, lanes, carry, marching, tb)
+    end_probe = end_probe | last_piece
+    return _probe_end(tr, lanes, marching, ended, end_probe)
 
 
 class _Out(NamedTuple):

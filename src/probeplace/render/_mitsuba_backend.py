@@ -40,6 +40,7 @@ from .._core import Scene
 from ._brdf import ALPHA_MIN, DIELECTRIC_F0, P_LOBE_MIN
 from ._integrator import COMPONENTS, RAY_EPS, SHADOW_EPS
 from ._lights import light_table
+from ._sampling import pcg4d_lanes
 
 if COMPONENTS != ("emission", "direct", "diffuse_indirect", "glossy_indirect", "full", "glossy_direct"):
     # _trace returns these six in this order; a new component must be added there too.
@@ -175,21 +176,8 @@ def prepare(scene: Scene) -> _Prepared:
 
 
 def _pcg4d(mi, x, y, z, w):
-    # _sampling._pcg4d (Jarzynski & Olano 2020): uint32 arithmetic wraps in Dr.Jit as in JAX.
-    x = x * 1664525 + 1013904223
-    y = y * 1664525 + 1013904223
-    z = z * 1664525 + 1013904223
-    w = w * 1664525 + 1013904223
-    x = x + y * w
-    y = y + z * x
-    z = z + x * y
-    w = w + y * z
-    x, y, z, w = x ^ (x >> 16), y ^ (y >> 16), z ^ (z >> 16), w ^ (w >> 16)
-    x = x + y * w
-    y = y + z * x
-    z = z + x * y
-    w = w + y * z
-    return x, y, z, w
+    """_sampling's PCG4D on Dr.Jit lanes (uint32 arithmetic wraps in Dr.Jit as in JAX)."""
+    return pcg4d_lanes(x, y, z, w)
 
 
 def _uniforms(mi, seed, stream, sample, bounce):
@@ -393,6 +381,124 @@ def _sample_light(dr, mi, P: _Prepared, s: dict, x, u4, u5, u6, u7):
     )
 
 
+class _Hit(collections.namedtuple("_Hit", "pi found is_hit tri t x wo ng cos_l mat")):
+    """What one bounce's ray cast found: Mitsuba's preliminary intersection and the values read at it."""
+
+    __slots__ = ()
+
+
+def _intersect(dr, mi, s: dict, o, d, alive) -> _Hit:
+    """Cast a bounce's ray; gather the hit's position, geometric normal and material (zeros on a miss)."""
+    pi = s["mi_scene"].ray_intersect_preliminary(mi.Ray3f(o, d), coherent=False, active=alive)
+    found = pi.is_valid()
+    is_hit = alive & found
+    tri = dr.select(is_hit, pi.prim_index, 0)
+    t = dr.select(is_hit, pi.t, 0.0)
+    x = o + t * d
+    wo = -d
+    ng = dr.gather(mi.Vector3f, s["geo_n"], tri, is_hit)
+    cos_l = _dot(ng, wo)
+    mat = dr.gather(mi.UInt32, s["tri_mat"], tri, is_hit)
+    return _Hit(pi, found, is_hit, tri, t, x, wo, ng, cos_l, mat)
+
+
+def _route(dr, zero3, acc, value, depth, glossy):
+    """Add radiance to the (emission, direct, indirect, glossy_direct) sums by its emitter's vertex depth."""
+    # _integrator._route: radiance that left its emitter at vertex depth 1, 2 or ≥ 3; ``glossy`` is
+    # the share of a direct value that x₁'s specular lobe reflected.
+    em, di, ind, gd = acc
+    return (
+        em + dr.select(depth == 1, value, zero3),
+        di + dr.select(depth == 2, value, zero3),
+        ind + dr.select(depth >= 3, value, zero3),
+        gd + dr.select(depth == 2, glossy, zero3),
+    )
+
+
+def _emitted(dr, mi, P: _Prepared, h: _Hit, s: dict, d, alive, prev_pdf, sky, zero3):
+    """Radiance arriving along the ray before throughput: the hit emitter's or the sky/sun's, MIS-weighted."""
+    # ---- emission at x_k (front faces), MIS against the light sample from x_{k−1}
+    le = dr.gather(mi.Vector3f, s["emission"], h.mat, h.is_hit & (h.cos_l > 0))
+    pa = dr.gather(mi.Float, s["pdf_area_of_tri"], h.tri, h.is_hit)
+    ok_pa = h.is_hit & (h.cos_l > 0) & (pa > 0)
+    w_le = _power(dr, prev_pdf, dr.select(ok_pa, pa * h.t * h.t / dr.select(ok_pa, h.cos_l, 1.0), 0.0))
+    # ---- escaped rays: the sky and, MIS-weighted, the sun's disk
+    env = sky
+    if P.has_sun:
+        diff = d - _lit3(mi, P.sun_dir)
+        in_sun = _dot(diff, diff) <= 2.0 * P.sun_h
+        pdf_sun = (1.0 - P.p_area) / (2.0 * math.pi * P.sun_h)
+        w_sun = dr.select(in_sun, _power(dr, prev_pdf, mi.Float(pdf_sun)), 0.0)
+        env = env + w_sun * _lit3(mi, P.sun_radiance)
+    return le * w_le + dr.select(alive & ~h.found, env, zero3)
+
+
+def _shading_frame(dr, mi, P: _Prepared, h: _Hit, s: dict):
+    """Normals flipped to the ray's side (two-sided shading) and the shading frame: (ng_f, ns_f, tb, bb)."""
+    flip = dr.select(h.cos_l < 0, -1.0, 1.0)
+    ng_f = h.ng * flip
+    if P.flat:
+        ns_f = ng_f
+    else:
+        # a miss's prim_uv is undefined (NaN at times): zero it as the JAX casters do
+        b1 = dr.select(h.is_hit, h.pi.prim_uv[0], 0.0)
+        b2 = dr.select(h.is_hit, h.pi.prim_uv[1], 0.0)
+        ns = (
+            (1.0 - b1 - b2) * dr.gather(mi.Vector3f, s["corner_n0"], h.tri, h.is_hit)
+            + b1 * dr.gather(mi.Vector3f, s["corner_n1"], h.tri, h.is_hit)
+            + b2 * dr.gather(mi.Vector3f, s["corner_n2"], h.tri, h.is_hit)
+        )
+        ns_f = _safe_normalize(dr, mi, ns) * flip
+    tb, bb = _make_frame(dr, mi, ns_f)
+    return ng_f, ns_f, tb, bb
+
+
+def _hit_brdf(dr, mi, h: _Hit, s: dict, wo_l) -> _Brdf:
+    """The BRDF of the hit's material, for the outgoing direction ``wo_l`` in the shading frame."""
+    return _Brdf(
+        dr,
+        mi,
+        dr.gather(mi.Vector3f, s["base_color"], h.mat, h.is_hit),
+        dr.gather(mi.Float, s["roughness"], h.mat, h.is_hit),
+        dr.gather(mi.Float, s["metallic"], h.mat, h.is_hit),
+        s["specular"],
+        wo_l,
+    )
+
+
+def _next_event(dr, mi, P: _Prepared, s: dict, h: _Hit, frame, brdf, x_off, u, ok, thr, zero3):
+    """Next-event estimation with MIS and a shadow ray: (contribution, light term, specular f, mask).
+
+    ``frame`` is :func:`_shading_frame`'s output; ``ok`` marks lanes that continue with ``wo`` above
+    the surface. The light term ``thr · L · weight`` and ``f_s`` give the glossy_direct share at x₁.
+    """
+    ng_f, ns_f, tb, bb = frame
+    l_wi, l_dist, l_rad, l_pdf = _sample_light(dr, mi, P, s, h.x, u[4], u[5], u[6], u[7])
+    wi_l = _to_local(mi, l_wi, tb, bb, ns_f)
+    f_d, f_s, pdf_d, pdf_s = brdf.eval_pdf(dr, mi, wi_l)
+    pdf_b = (1.0 - brdf.ps) * pdf_d + brdf.ps * pdf_s
+    cont, wo_up = ok
+    ok_l = cont & (l_pdf > 0) & (_dot(l_wi, ng_f) > 0) & wo_up
+    scale = dr.maximum(wi_l[2], 0.0) * _power(dr, l_pdf, pdf_b) / dr.select(ok_l, l_pdf, 1.0)
+    shadow = mi.Ray3f(x_off, l_wi)
+    shadow.maxt = l_dist * (1.0 - SHADOW_EPS)
+    ok_l &= ~s["mi_scene"].ray_test(shadow, active=ok_l)
+    light = thr * l_rad * scale
+    # select after the product: a lane without a light sample may hold NaN in f
+    nee = dr.select(ok_l, light * (f_d + f_s), zero3)
+    return nee, light, f_s, ok_l
+
+
+def _russian_roulette(dr, s: dict, k, u3, thr_new, ok_b):
+    """Mitsuba's Russian roulette on the new throughput: (reweighted throughput, lane still alive)."""
+    q = dr.minimum(dr.maximum(dr.maximum(thr_new[0], thr_new[1]), thr_new[2]), 0.95)
+    use_rr = k >= s["rr_depth"]
+    survive = ~use_rr | (u3 < q)
+    thr_new = dr.select(use_rr & survive & (q > 0), thr_new / dr.select(q > 0, q, 1.0), thr_new)
+    alive_new = ok_b & survive & ((thr_new[0] > 0) | (thr_new[1] > 0) | (thr_new[2] > 0))
+    return thr_new, alive_new
+
+
 def _trace(P: _Prepared, o, d, stream, sample, valid, s: dict):
     """Every bounce of every lane (one symbolic loop); the components in :data:`COMPONENTS` order, three
     Float arrays (RGB) each."""
@@ -402,94 +508,29 @@ def _trace(P: _Prepared, o, d, stream, sample, valid, s: dict):
     zero3 = mi.Vector3f(0.0)
     sky = _lit3(mi, P.sky)
 
-    def route(acc, value, depth, glossy):
-        # _integrator._route: radiance that left its emitter at vertex depth 1, 2 or ≥ 3; ``glossy`` is
-        # the share of a direct value that x₁'s specular lobe reflected.
-        em, di, ind, gd = acc
-        return (
-            em + dr.select(depth == 1, value, zero3),
-            di + dr.select(depth == 2, value, zero3),
-            ind + dr.select(depth >= 3, value, zero3),
-            gd + dr.select(depth == 2, glossy, zero3),
-        )
-
     def cond(k, o, d, thr, alive, prev_pdf, spec_first, acc):
         return alive
 
     def body(k, o, d, thr, alive, prev_pdf, spec_first, acc):
         u = _uniforms(mi, s["seed"], stream, sample, k)
-        pi = s["mi_scene"].ray_intersect_preliminary(mi.Ray3f(o, d), coherent=False, active=alive)
-        found = pi.is_valid()
-        is_hit = alive & found
-        tri = dr.select(is_hit, pi.prim_index, 0)
-        t = dr.select(is_hit, pi.t, 0.0)
-        x = o + t * d
-        wo = -d
-        ng = dr.gather(mi.Vector3f, s["geo_n"], tri, is_hit)
-        cos_l = _dot(ng, wo)
-        mat = dr.gather(mi.UInt32, s["tri_mat"], tri, is_hit)
-        # ---- emission at x_k (front faces), MIS against the light sample from x_{k−1}
-        le = dr.gather(mi.Vector3f, s["emission"], mat, is_hit & (cos_l > 0))
-        pa = dr.gather(mi.Float, s["pdf_area_of_tri"], tri, is_hit)
-        ok_pa = is_hit & (cos_l > 0) & (pa > 0)
-        w_le = _power(dr, prev_pdf, dr.select(ok_pa, pa * t * t / dr.select(ok_pa, cos_l, 1.0), 0.0))
-        # ---- escaped rays: the sky and, MIS-weighted, the sun's disk
-        env = sky
-        if P.has_sun:
-            diff = d - _lit3(mi, P.sun_dir)
-            in_sun = _dot(diff, diff) <= 2.0 * P.sun_h
-            pdf_sun = (1.0 - P.p_area) / (2.0 * math.pi * P.sun_h)
-            w_sun = dr.select(in_sun, _power(dr, prev_pdf, mi.Float(pdf_sun)), 0.0)
-            env = env + w_sun * _lit3(mi, P.sun_radiance)
-        got = thr * (le * w_le + dr.select(alive & ~found, env, zero3))
+        h = _intersect(dr, mi, s, o, d, alive)
+        got = thr * _emitted(dr, mi, P, h, s, d, alive, prev_pdf, sky, zero3)
         # an emitter found at x₂ was reached by x₁'s BRDF sample, of x₁'s lobe (spec_first)
-        acc = route(acc, got, k, dr.select(spec_first, got, zero3))
+        acc = _route(dr, zero3, acc, got, k, dr.select(spec_first, got, zero3))
 
         # ---- continue from x_k (max_depth counts segments)
-        cont = is_hit & (k < s["max_depth"])
-        flip = dr.select(cos_l < 0, -1.0, 1.0)
-        ng_f = ng * flip
-        if P.flat:
-            ns_f = ng_f
-        else:
-            # a miss's prim_uv is undefined (NaN at times): zero it as the JAX casters do
-            b1 = dr.select(is_hit, pi.prim_uv[0], 0.0)
-            b2 = dr.select(is_hit, pi.prim_uv[1], 0.0)
-            ns = (
-                (1.0 - b1 - b2) * dr.gather(mi.Vector3f, s["corner_n0"], tri, is_hit)
-                + b1 * dr.gather(mi.Vector3f, s["corner_n1"], tri, is_hit)
-                + b2 * dr.gather(mi.Vector3f, s["corner_n2"], tri, is_hit)
-            )
-            ns_f = _safe_normalize(dr, mi, ns) * flip
-        tb, bb = _make_frame(dr, mi, ns_f)
-        wo_l = _to_local(mi, wo, tb, bb, ns_f)
-        brdf = _Brdf(
-            dr,
-            mi,
-            dr.gather(mi.Vector3f, s["base_color"], mat, is_hit),
-            dr.gather(mi.Float, s["roughness"], mat, is_hit),
-            dr.gather(mi.Float, s["metallic"], mat, is_hit),
-            s["specular"],
-            wo_l,
-        )
+        cont = h.is_hit & (k < s["max_depth"])
+        frame = _shading_frame(dr, mi, P, h, s)
+        ng_f, ns_f, tb, bb = frame
+        brdf = _hit_brdf(dr, mi, h, s, _to_local(mi, h.wo, tb, bb, ns_f))
+        x = h.x
         ax = dr.maximum(dr.maximum(dr.abs(x[0]), dr.abs(x[1])), dr.abs(x[2]))
         x_off = x + ((1.0 + ax) * RAY_EPS) * ng_f
-        wo_up = _dot(wo, ng_f) > 0
+        wo_up = _dot(h.wo, ng_f) > 0
         first = k == 1
         # ---- next-event estimation with MIS
-        l_wi, l_dist, l_rad, l_pdf = _sample_light(dr, mi, P, s, x, u[4], u[5], u[6], u[7])
-        wi_l = _to_local(mi, l_wi, tb, bb, ns_f)
-        f_d, f_s, pdf_d, pdf_s = brdf.eval_pdf(dr, mi, wi_l)
-        pdf_b = (1.0 - brdf.ps) * pdf_d + brdf.ps * pdf_s
-        ok_l = cont & (l_pdf > 0) & (_dot(l_wi, ng_f) > 0) & wo_up
-        scale = dr.maximum(wi_l[2], 0.0) * _power(dr, l_pdf, pdf_b) / dr.select(ok_l, l_pdf, 1.0)
-        shadow = mi.Ray3f(x_off, l_wi)
-        shadow.maxt = l_dist * (1.0 - SHADOW_EPS)
-        ok_l &= ~s["mi_scene"].ray_test(shadow, active=ok_l)
-        light = thr * l_rad * scale
-        # select after the product: a lane without a light sample may hold NaN in f
-        nee = dr.select(ok_l, light * (f_d + f_s), zero3)
-        acc = route(acc, nee, k + 1, dr.select(ok_l & first, light * f_s, zero3))
+        nee, light, f_s, ok_l = _next_event(dr, mi, P, s, h, frame, brdf, x_off, u, (cont, wo_up), thr, zero3)
+        acc = _route(dr, zero3, acc, nee, k + 1, dr.select(ok_l & first, light * f_s, zero3))
         # ---- BRDF sample → next ray; the per-lobe weight at x₁ keeps the lobe split unbiased
         wi_bl, b_spec, w_lobe, w_mix, b_pdf = brdf.sample(dr, mi, u[0], u[1], u[2])
         wi = _to_world(wi_bl, tb, bb, ns_f)
@@ -497,11 +538,7 @@ def _trace(P: _Prepared, o, d, stream, sample, valid, s: dict):
         thr_new = dr.select(ok_b, thr * dr.select(first, w_lobe, w_mix), zero3)
         spec_first = dr.select(first, b_spec, spec_first)
         # ---- Russian roulette (Mitsuba's rule)
-        q = dr.minimum(dr.maximum(dr.maximum(thr_new[0], thr_new[1]), thr_new[2]), 0.95)
-        use_rr = k >= s["rr_depth"]
-        survive = ~use_rr | (u[3] < q)
-        thr_new = dr.select(use_rr & survive & (q > 0), thr_new / dr.select(q > 0, q, 1.0), thr_new)
-        alive_new = ok_b & survive & ((thr_new[0] > 0) | (thr_new[1] > 0) | (thr_new[2] > 0))
+        thr_new, alive_new = _russian_roulette(dr, s, k, u[3], thr_new, ok_b)
         return k + 1, x_off, wi, thr_new, alive_new, b_pdf, spec_first, acc
 
     state = (

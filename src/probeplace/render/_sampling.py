@@ -40,11 +40,11 @@ def seed_from_key(key: Key[Array, ""]) -> UInt32[Array, ""]:
     return jax.random.bits(key, (), jnp.uint32)
 
 
-def _pcg4d(v: UInt32[Array, "4"]) -> UInt32[Array, "4"]:
-    # Jarzynski & Olano 2020, Listing "pcg4d": an LCG step, two rounds of cross-lane multiply-adds
-    # around an xorshift. uint32 arithmetic wraps, as in the GLSL original.
-    v = v * jnp.uint32(1664525) + jnp.uint32(1013904223)
-    x, y, z, w = v[0], v[1], v[2], v[3]
+def pcg4d_lanes(x, y, z, w):
+    """Jarzynski & Olano 2020, Listing "pcg4d", on four lanes of any uint32 array type with wrapping
+    ``+ * ^ >>`` (JAX here, Dr.Jit in the Mitsuba backend: one definition keeps their streams equal): an
+    LCG step, two rounds of cross-lane multiply-adds around an xorshift, as in the GLSL original."""
+    x, y, z, w = (v * 1664525 + 1013904223 for v in (x, y, z, w))
     x = x + y * w
     y = y + z * x
     z = z + x * y
@@ -54,7 +54,11 @@ def _pcg4d(v: UInt32[Array, "4"]) -> UInt32[Array, "4"]:
     y = y + z * x
     z = z + x * y
     w = w + y * z
-    return jnp.stack([x, y, z, w])
+    return x, y, z, w
+
+
+def _pcg4d(v: UInt32[Array, "4"]) -> UInt32[Array, "4"]:
+    return jnp.stack(pcg4d_lanes(*(v[i] for i in range(4))))
 
 
 def _to_unit(bits: UInt32[Array, "..."]) -> Float[Array, "..."]:

@@ -52,6 +52,13 @@ def make_materials(
     )
 
 
+def materials_from_table(table: dict[str, tuple], columns: Sequence[str]) -> Materials:
+    """:func:`make_materials` from ``{name: (value per column)}``, the built-in scenes' tables;
+    ``columns`` names each tuple position (``base_color``, ``roughness``, ``metallic``, ``emission``)."""
+    names = list(table)
+    return make_materials(names, **{c: np.array([table[n][i] for n in names]) for i, c in enumerate(columns)})
+
+
 def make_camera(position, look_at, fov_y_deg: float, name: str, up=(0.0, 1.0, 0.0)) -> Camera:
     f32 = lambda x: jnp.asarray(np.asarray(x, np.float32))
     return Camera(
@@ -109,30 +116,8 @@ def crease_normals(
     return out.reshape(n_tri, 3, 3).astype(np.float32)
 
 
-def build_scene(
-    name: str,
-    vertices: np.ndarray,
-    faces: np.ndarray,
-    tri_material: np.ndarray,
-    materials: Materials,
-    *,
-    tri_part: np.ndarray | None = None,
-    part_names: Sequence[str] = ("mesh",),
-    views: Sequence[Camera] = (),
-    sun: Sun | None = None,
-    sky_radiance=(0.0, 0.0, 0.0),
-    unit_m: float = 1.0,
-    source: str = "<memory>",
-) -> Scene:
-    """Check raw triangle data, drop degenerate and duplicate triangles (logged with a count) and build a
-    Scene.
-
-    Raises:
-        SceneError: empty mesh, NaN/inf vertices, coordinates outside float32's safe range, out-of-range
-            indices or material ids.
-    """
-    vertices = np.asarray(vertices)
-    faces = np.asarray(faces)
+def _check_geometry(vertices: np.ndarray, faces: np.ndarray, source: str) -> None:
+    """Refuse malformed or float32-unsafe vertices and faces (shapes, NaN/inf, index range, scale)."""
     if vertices.ndim != 2 or vertices.shape[1] != 3:
         raise SceneError(f"{source}: vertices must have shape (n, 3), got {vertices.shape}")
     if faces.ndim != 2 or faces.shape[1] != 3 or faces.shape[0] == 0:
@@ -160,19 +145,24 @@ def build_scene(
             f"{source}: the scene's extent {extent:.3g} is below {MIN_EXTENT:g}: squared distances "
             "would underflow float32; rescale the scene"
         )
+
+
+def _checked_labels(tri_material, tri_part, part_names, n_faces: int, n_materials: int, source: str):
+    """Range-checked int64 material and part ids per triangle: (tri_material, tri_part, part_names)."""
     tri_material = np.asarray(tri_material, np.int64).reshape(-1)
-    if tri_material.shape[0] != faces.shape[0]:
-        raise SceneError(
-            f"{source}: tri_material has {tri_material.shape[0]} rows for {faces.shape[0]} triangles"
-        )
-    if tri_material.min() < 0 or tri_material.max() >= len(materials.names):
-        raise SceneError(f"{source}: material index out of range [0, {len(materials.names)})")
-    tri_part = np.zeros(len(faces), np.int64) if tri_part is None else np.asarray(tri_part, np.int64)
+    if tri_material.shape[0] != n_faces:
+        raise SceneError(f"{source}: tri_material has {tri_material.shape[0]} rows for {n_faces} triangles")
+    if tri_material.min() < 0 or tri_material.max() >= n_materials:
+        raise SceneError(f"{source}: material index out of range [0, {n_materials})")
+    tri_part = np.zeros(n_faces, np.int64) if tri_part is None else np.asarray(tri_part, np.int64)
     part_names = tuple(str(p) for p in part_names)
     if tri_part.min() < 0 or tri_part.max() >= len(part_names):
         raise SceneError(f"{source}: part index out of range [0, {len(part_names)})")
+    return tri_material, tri_part, part_names
 
-    v64 = vertices.astype(np.float64)
+
+def _drop_degenerate(v64: np.ndarray, faces, tri_material, tri_part, source: str):
+    """Drop zero-area triangles (no stable float32 normal, nothing to render); refuse all-degenerate input."""
     tri = v64[faces]
     area2 = np.linalg.norm(np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0]), axis=1)
     diag = float(np.linalg.norm(v64.max(0) - v64.min(0)))
@@ -185,7 +175,11 @@ def build_scene(
         )
         keep = ~degenerate
         faces, tri_material, tri_part = faces[keep], tri_material[keep], tri_part[keep]
+    return faces, tri_material, tri_part
 
+
+def _drop_duplicates(v64: np.ndarray, faces, tri_material, tri_part, source: str):
+    """Keep the first of triangles with the same corners and winding (they z-fight and double-count area)."""
     # Duplicate triangles (same corners, same winding; issue 9) z-fight and double-count area: keep the
     # first. Opposite windings are kept: two one-sided faces back to back are a legitimate thin sheet.
     _, v_id = np.unique(v64, axis=0, return_inverse=True)
@@ -197,6 +191,41 @@ def build_scene(
         log.warning("%s: dropped %d duplicate triangles of %d", source, len(faces) - len(first), len(faces))
         keep = np.sort(first)
         faces, tri_material, tri_part = faces[keep], tri_material[keep], tri_part[keep]
+    return faces, tri_material, tri_part
+
+
+def build_scene(
+    name: str,
+    vertices: np.ndarray,
+    faces: np.ndarray,
+    tri_material: np.ndarray,
+    materials: Materials,
+    *,
+    tri_part: np.ndarray | None = None,
+    part_names: Sequence[str] = ("mesh",),
+    views: Sequence[Camera] = (),
+    sun: Sun | None = None,
+    sky_radiance=(0.0, 0.0, 0.0),
+    unit_m: float = 1.0,
+    source: str = "<memory>",
+) -> Scene:
+    """Check raw triangle data, drop degenerate and duplicate triangles (logged with a count) and build a
+    Scene.
+
+    Raises:
+        SceneError: empty mesh, NaN/inf vertices, coordinates outside float32's safe range, out-of-range
+            indices or material ids.
+    """
+    vertices = np.asarray(vertices)
+    faces = np.asarray(faces)
+    _check_geometry(vertices, faces, source)
+    tri_material, tri_part, part_names = _checked_labels(
+        tri_material, tri_part, part_names, faces.shape[0], len(materials.names), source
+    )
+
+    v64 = vertices.astype(np.float64)
+    faces, tri_material, tri_part = _drop_degenerate(v64, faces, tri_material, tri_part, source)
+    faces, tri_material, tri_part = _drop_duplicates(v64, faces, tri_material, tri_part, source)
 
     # Drop vertices no face uses, so bounds describe the geometry.
     used, inverse = np.unique(faces.reshape(-1), return_inverse=True)

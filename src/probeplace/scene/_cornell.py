@@ -12,7 +12,7 @@ from __future__ import annotations
 import numpy as np
 
 from .._core import Scene
-from ._build import build_scene, make_camera, make_materials
+from ._build import build_scene, make_camera, materials_from_table
 
 # name -> list of quads (4 corners each, mm)
 _PARTS: dict[str, list[list[tuple[float, float, float]]]] = {
@@ -84,11 +84,7 @@ def cornell_box() -> Scene:
             faces.append(base + np.array([[0, 1, 2], [0, 2, 3]]))
             tri_mat += [mat_names.index(_MATERIAL_OF_PART[part])] * 2
             tri_part += [part_id] * 2
-    materials = make_materials(
-        mat_names,
-        base_color=np.array([_MATERIALS[m][0] for m in mat_names]),
-        emission=np.array([_MATERIALS[m][1] for m in mat_names]),
-    )
+    materials = materials_from_table(_MATERIALS, ("base_color", "emission"))
     views = (
         make_camera((278.0, 273.0, -800.0), (278.0, 273.0, -799.0), 39.3, "front"),
         make_camera((278.0, 500.0, 30.0), (278.0, 80.0, 420.0), 65.0, "interior"),

@@ -14,7 +14,7 @@ from __future__ import annotations
 import numpy as np
 
 from .._core import Scene
-from ._build import make_camera, make_materials
+from ._build import make_camera, materials_from_table
 from ._primitives import MeshAssembler, box, cylinder, place, rotation_y
 from ._sky import DAYLIGHT_SKY_RADIANCE, sun_direction, sun_from_irradiance
 
@@ -125,13 +125,7 @@ def courtyard() -> Scene:
     a = MeshAssembler()
     _add_enclosure(a)
     _add_clutter(a)
-    names = list(_MATERIALS)
-    materials = make_materials(
-        names,
-        base_color=np.array([_MATERIALS[m][0] for m in names]),
-        roughness=np.array([_MATERIALS[m][1] for m in names]),
-        metallic=np.array([_MATERIALS[m][2] for m in names]),
-    )
+    materials = materials_from_table(_MATERIALS, ("base_color", "roughness", "metallic"))
     views = (
         make_camera((-17.0, 1.7, -17.0), (5.0, 0.5, 5.0), 60.0, "plaza"),
         make_camera((-17.0, 1.7, 18.5), (15.0, 1.4, 18.5), 60.0, "arcade"),

@@ -28,7 +28,7 @@ import trimesh
 
 from .._core import Camera, SceneError, Sun
 from ._build import make_camera
-from ._raw import DEFAULT_GREY, PartCollector, RawScene, trimesh_errors
+from ._raw import DEFAULT_GREY, PartCollector, RawScene, material_arrays, trimesh_errors
 from ._sky import sun_from_irradiance
 
 log = logging.getLogger(__name__)
@@ -269,10 +269,7 @@ def load_gltf(path: Path) -> RawScene:
         tri_part=tri_part,
         part_names=parts.part_names,
         material_names=mat_names,
-        base_color=np.stack([m["base_color"] for m in mats]),
-        roughness=np.array([m["roughness"] for m in mats]),
-        metallic=np.array([m["metallic"] for m in mats]),
-        emission=np.stack([m["emission"] for m in mats]),
+        **material_arrays(mats),
         views=gltf_cameras(doc),
         sun=gltf_sun(doc, path),
         unit_m=1.0,  # glTF 2.0: "the units for all linear distances are meters" (spec §3.4)

@@ -27,7 +27,7 @@ import numpy as np
 import trimesh
 
 from .._core import SceneError
-from ._raw import DEFAULT_GREY, PartCollector, RawScene, trimesh_errors
+from ._raw import DEFAULT_GREY, PartCollector, RawScene, material_arrays, trimesh_errors
 
 log = logging.getLogger(__name__)
 
@@ -154,8 +154,5 @@ def load_obj(path: Path) -> RawScene:
         tri_part=tri_part,
         part_names=parts.part_names,
         material_names=mat_names,
-        base_color=np.stack([p["base_color"] for p in props]),
-        roughness=np.array([p["roughness"] for p in props]),
-        metallic=np.array([p["metallic"] for p in props]),
-        emission=np.stack([p["emission"] for p in props]),
+        **material_arrays(props),
     )

@@ -147,3 +147,14 @@ def ensure_views(
         if v.name not in taken:
             out.append(v)
     return out
+
+
+def material_arrays(materials: list[dict]) -> dict[str, np.ndarray]:
+    """The material arrays of :class:`RawScene` from one dict per material (``base_color``, ``roughness``,
+    ``metallic``, ``emission``), as the file loaders collect them."""
+    return {
+        "base_color": np.stack([m["base_color"] for m in materials]),
+        "roughness": np.array([m["roughness"] for m in materials]),
+        "metallic": np.array([m["metallic"] for m in materials]),
+        "emission": np.stack([m["emission"] for m in materials]),
+    }

@@ -22,10 +22,8 @@ so no ray can slip through a seam between two boxes into D.
 
 from __future__ import annotations
 
-import numpy as np
-
 from .._core import Scene
-from ._build import make_camera, make_materials
+from ._build import make_camera, materials_from_table
 from ._primitives import BOX_FACE_TRIS, MeshAssembler, box
 
 #: Interior (thin) wall thickness in metres.
@@ -110,13 +108,7 @@ def rooms() -> Scene:
     a.add(box((5.0, 0.0 - 0.01, 3.2), (6.4, 0.75, 4.2)), "furniture", "table")
     a.add(box((10.5, 0.0 - 0.01, 6.0), (12.5, 1.2, 6.6)), "furniture", "shelf")
     a.add(box((1.0, 0.0 - 0.01, 2.0), (2.2, 0.9, 3.0)), "furniture", "dark_room_box")
-    names = list(_MATERIALS)
-    materials = make_materials(
-        names,
-        base_color=np.array([_MATERIALS[m][0] for m in names]),
-        roughness=np.array([_MATERIALS[m][1] for m in names]),
-        emission=np.array([_MATERIALS[m][2] for m in names]),
-    )
+    materials = materials_from_table(_MATERIALS, ("base_color", "roughness", "emission"))
     views = (
         make_camera((8.5, 1.6, 0.6), (4.0, 1.2, 3.5), 65.0, "lit_room"),
         make_camera((12.4, 1.6, 2.5), (6.0, 1.2, 2.5), 60.0, "doorway"),

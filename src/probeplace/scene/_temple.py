@@ -11,10 +11,8 @@ Layout (hall interior): x ∈ [−10, 10], z ∈ [−7, 5.5], floor y = 1, roof 
 
 from __future__ import annotations
 
-import numpy as np
-
 from .._core import Scene
-from ._build import make_camera, make_materials
+from ._build import make_camera, materials_from_table
 from ._primitives import MeshAssembler, box, cylinder
 from ._sky import DAYLIGHT_SKY_RADIANCE, sun_direction, sun_from_irradiance
 
@@ -110,13 +108,7 @@ def temple() -> Scene:
     _add_pillars(a)
     _add_stairs(a)
     _add_altar(a)
-    names = list(_MATERIALS)
-    materials = make_materials(
-        names,
-        base_color=np.array([_MATERIALS[m][0] for m in names]),
-        roughness=np.array([_MATERIALS[m][1] for m in names]),
-        metallic=np.array([_MATERIALS[m][2] for m in names]),
-    )
+    materials = materials_from_table(_MATERIALS, ("base_color", "roughness", "metallic"))
     views = (
         make_camera((-9.0, 2.7, -3.5), (6.0, 2.0, 3.0), 60.0, "hall"),
         make_camera((3.0, 2.0, 0.2), (5.2, 1.5, 4.6), 60.0, "stairs"),

@@ -1,0 +1,212 @@
+"""The common end of every placement method: valid space, the exact budget, coverage and the refiner.
+
+Every method hands its positions to :func:`finish_lattice` (the lattice methods and any new method) or,
+with its own search and refinement, to :func:`make_usable` and :func:`coverage_context` (the skeleton
+methods), so that all of them
+
+1. keep only *usable* probes: relocated out of geometry to the clearance and into the placement region,
+   the rest dropped (``_valid``, DDGI relocation / Unity APV's virtual offset);
+2. return exactly the probe count asked for (``_budget``: trim least unique coverage, fill farthest);
+3. report binary coverage measured the same way — one coverage problem per seed (the ``"coverage"``
+   random stream), one caster — so coverages compare like for like across methods;
+4. refine, when asked, and keep the refined set only when the refiner's own objective improved
+   (:meth:`RefineResult.improved`: the objective optimised is the one judged) and the set stays usable.
+"""
+
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass
+
+import jax.numpy as jnp
+import numpy as np
+
+from .._core import ConfigError, ProbeSet, Scene, scene_box, stream
+from ..geometry import AbstractRayCaster
+from ._budget import fit_to_budget
+from ._fitness import FitnessConfig, PlacementProblem, binary_coverage, binary_visibility, make_problem
+from ._refine import get_refiner
+from ._registry import PlaceRequest, PlaceResult
+from ._valid import Region, default_clearance, make_valid, valid_candidates
+
+
+@dataclass(frozen=True, eq=False)
+class CoverageContext:
+    """How every method measures binary coverage for one request: the problem (surface samples of the
+    ``"coverage"`` stream of the seed, the request's fitness config) and the visibility caster."""
+
+    problem: PlacementProblem
+    caster: AbstractRayCaster | None
+
+    def visibility(self, pos) -> np.ndarray:
+        """Binary visibility (n_probes, n_samples) of ``pos``."""
+        return binary_visibility(self.problem, np.asarray(pos, np.float32), caster=self.caster)
+
+    def coverage(self, pos) -> float:
+        """Share of the coverable area seen by at least one of ``pos``."""
+        return binary_coverage(self.problem, self.visibility(pos)) if len(pos) else 0.0
+
+    @property
+    def area(self) -> np.ndarray:
+        """Each sample's coverable area (0 where not coverable)."""
+        return np.asarray(self.problem.area, np.float64) * np.asarray(self.problem.coverable)
+
+    @property
+    def visibility_name(self) -> str:
+        return "sdf" if self.caster is None else type(self.caster).__name__
+
+
+def coverage_context(scene: Scene, request: PlaceRequest, sdf) -> CoverageContext:
+    """The coverage problem and caster of ``request`` (module docstring, step 3)."""
+    problem = make_problem(scene, key=stream(request.seed, "coverage"), grid=sdf, config=request.config)
+    return CoverageContext(problem, search_caster(scene, request.caster))
+
+
+def search_caster(scene: Scene, caster: str | AbstractRayCaster | None):
+    """The exact caster of the binary visibility (PERF: Embree occlusion rays), or None (SDF tracer). A
+    caster object is used as given; the strings pick one ("auto": Embree, else the SDF tracer — a rule of
+    its own: the SDF tracer, not ``make_caster``'s BVH, is the fallback here)."""
+    if isinstance(caster, AbstractRayCaster):
+        return caster
+    if caster in (None, "sdf"):
+        return None
+    if caster not in ("auto", "embree"):
+        raise ConfigError(f"caster must be 'auto', 'embree', 'sdf' or None, got {caster!r}")
+    from ..geometry import EmbreeUnavailableError, make_caster
+
+    try:
+        return make_caster(scene, "embree")
+    except EmbreeUnavailableError:
+        if caster == "embree":
+            raise
+        return None
+
+
+def make_usable(
+    scene: Scene,
+    request: PlaceRequest,
+    pos,
+    *,
+    sdf,
+    cov: CoverageContext,
+    spare: np.ndarray | None = None,
+    valid: bool = True,
+) -> tuple[np.ndarray, dict]:
+    """Steps 1–2 of the module docstring: ``pos`` made valid, then trimmed or filled to the budget (an
+    integer budget; ``"auto"`` keeps the count). ``spare``: the method's unchosen candidates, offered to
+    the fill before the valid-space lattice. ``valid=False`` (the grid's ``inside="keep"``, kept to show
+    the classic failure) skips step 1. Returns (positions, record for the metadata)."""
+    pos = np.asarray(pos, np.float32).reshape(-1, 3)
+    lo, hi = (np.asarray(v, np.float64) for v in scene_box(scene))
+    clearance = default_clearance(scene, sdf) if request.clearance is None else float(request.clearance)
+    region = Region.from_config(request.region)
+    record: dict = {}
+    if valid:
+        v = make_valid(sdf, pos, clearance=clearance, region=region, lo=lo, hi=hi)
+        pos = np.asarray(v.pos, np.float32)[~np.asarray(v.dropped)]
+        record["valid_space"] = v.record()
+    if request.budget == "auto":
+        return pos, record
+
+    def pool(n_needed: int) -> np.ndarray:
+        extra = _usable_spare(spare, sdf, clearance, region, lo, hi) if valid else np.zeros((0, 3))
+        spacing = float(np.prod(hi - lo) / max(8 * (n_needed + len(pos)), 1)) ** (1 / 3)
+        for _ in range(6):  # refine the lattice until the valid space offers enough points
+            lattice = valid_candidates(sdf, lo, hi, clearance, region if valid else None, spacing)
+            if len(extra) + len(lattice) >= n_needed:
+                break
+            spacing /= 2
+        return np.concatenate([np.asarray(extra, np.float32).reshape(-1, 3), lattice.astype(np.float32)])
+
+    fit = fit_to_budget(pos, int(request.budget), visibility=cov.visibility, area=cov.area, pool_fn=pool)
+    if fit.short:
+        raise ConfigError(
+            f"budget {request.budget}: the valid space (clearance {clearance:.4g}) holds only "
+            f"{len(fit.pos)} probes at the finest fill lattice; lower the budget or the clearance"
+        )
+    record["budget_fit"] = fit.record()
+    return fit.pos, record
+
+
+def _usable_spare(spare, sdf, clearance, region, lo, hi) -> np.ndarray:
+    """The spare candidates that are already valid (no relocation: they are offered, not owed)."""
+    if spare is None or not len(spare):
+        return np.zeros((0, 3), np.float32)
+    v = make_valid(sdf, np.asarray(spare, np.float32), clearance=clearance, region=region, lo=lo, hi=hi)
+    ok = ~np.asarray(v.moved) & ~np.asarray(v.dropped)
+    return np.asarray(spare, np.float32).reshape(-1, 3)[ok]
+
+
+def refine_if_improved(scene: Scene, request: PlaceRequest, pos: np.ndarray, *, sdf, still_usable):
+    """Step 4: the request's refiner on its own (smaller) problem from the ``"refine-samples"`` stream;
+    the refined set is kept when its objective improved and ``still_usable(new)`` holds.
+    Returns (pos, status, refined, record)."""
+    problem = refine_problem(scene, request, sdf)
+    refiner = get_refiner(request.refiner, objective=request.objective)
+    out = refiner.refine(problem, jnp.asarray(pos), key=stream(request.seed, "refine"))
+    new = np.asarray(out.pos, np.float32)
+    record = {"refine_objective_before": float(out.start_value), "refine_objective_after": float(out.value)}
+    if out.improved() and np.all(np.isfinite(new)) and still_usable(new):
+        return new, out.status_message(), True, record
+    return pos, out.status_message(), False, record
+
+
+def refine_problem(scene: Scene, request: PlaceRequest, sdf) -> PlacementProblem:
+    """The refiner's (smaller) problem: ``n_opt_samples`` samples, 16 march steps unless a config is given."""
+    config = FitnessConfig(n_steps=16) if request.config is None else request.config
+    key = stream(request.seed, "refine-samples")
+    return make_problem(scene, key=key, grid=sdf, n_samples=request.n_opt_samples, config=config)
+
+
+def probe_set(pos, method: str) -> ProbeSet:
+    return ProbeSet(pos_world=jnp.asarray(pos), active=jnp.ones(len(pos), bool), method=method)
+
+
+def finish_lattice(
+    scene: Scene,
+    request: PlaceRequest,
+    method: str,
+    pos,
+    *,
+    sdf,
+    timings: dict,
+    t_all: float,
+    info: dict,
+    spare: np.ndarray | None = None,
+    valid: bool = True,
+) -> PlaceResult:
+    """Steps 1–4 of the module docstring for a method that lays its positions without a search (Vardis
+    2021 §4's "global optimiser as a last step" is step 4)."""
+    t0 = time.perf_counter()
+    cov = coverage_context(scene, request, sdf)
+    pos, record = make_usable(scene, request, pos, sdf=sdf, cov=cov, spare=spare, valid=valid)
+    coverage = cov.coverage(pos)
+    timings["coverage_s"] = time.perf_counter() - t0
+    refined, status = False, None
+    if request.refiner is not None and len(pos):
+        t0 = time.perf_counter()
+        n = len(pos)
+
+        def still_usable(new):
+            again, _ = make_usable(scene, request, new, sdf=sdf, cov=cov, valid=valid)
+            return len(again) == n and np.allclose(again, new)
+
+        pos, status, refined, rec = refine_if_improved(
+            scene, request, pos, sdf=sdf, still_usable=still_usable
+        )
+        record.update(rec)
+        if refined:
+            coverage = cov.coverage(pos)
+        timings["refine_s"] = time.perf_counter() - t0
+    timings["total_s"] = time.perf_counter() - t_all
+    return PlaceResult(
+        probes=probe_set(pos, method),
+        method=method,
+        request=request,
+        coverage=coverage,
+        visibility=cov.visibility_name,
+        timings=timings,
+        refine_status=status,
+        refined=refined,
+        info={**info, **record},
+    )
