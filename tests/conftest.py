@@ -25,6 +25,8 @@ HEAVY_FIRST = (
     "tests/geometry/test_raycast_backends.py",
     "tests/evaluate/test_energy.py",
     "tests/placement/test_seeds_refine.py",
+    "tests/placement/test_refiners_toy.py",
+    "tests/placement/test_budget.py",
 )
 
 

@@ -211,3 +211,31 @@ def test_stability_report_splits_runs_by_pose(tmp_path):
         assert row in table, row
     assert "translated+rotated" not in table
     assert (exp / "report" / "stability.png").stat().st_size > 1000 and "(stability.png)" in text
+
+
+def test_seed_paired_ratio_closed_forms():
+    from scipy import stats
+
+    from probeplace.experiment._report import seed_paired_ratio
+
+    assert seed_paired_ratio([(2.0, 1.0), (4.0, 2.0), (6.0, 3.0)]) == pytest.approx((2.0, 2.0, 2.0))
+    r, lo, hi = seed_paired_ratio([(1.0, 1.0), (4.0, 1.0)])  # log ratios 0 and ln 4
+    half = stats.t.ppf(0.975, 1) * np.std([0.0, np.log(4.0)], ddof=1) / np.sqrt(2)
+    assert r == pytest.approx(2.0) and lo == pytest.approx(2.0 * np.exp(-half))
+    assert hi == pytest.approx(2.0 * np.exp(half)) and lo * hi == pytest.approx(r * r)
+    one = seed_paired_ratio([(3.0, 1.0)])
+    assert one[0] == pytest.approx(3.0) and np.isnan(one[1]) and np.isnan(one[2])
+
+
+def test_report_pairs_seeds_at_an_exact_count(tmp_path):
+    """Every method at the grid's exact count on three seeds: the paired table gives each method ÷ grid
+    (the synthetic MSEs are A[label] / n on every seed, so the ratio is A[label] / A[grid], no spread)."""
+    exp = tmp_path / "paired"
+    for label in ("grid", "skeleton"):
+        for seed in (0, 1, 2):
+            _fake_run(exp, label, 8, seed=seed)
+    text = make_report(exp).read_text()
+    table = text.split("exactly 8 probes")[1].split("##")[0]
+    want = A["skeleton"] / A["grid"]
+    assert re.search(rf"\| skeleton \| 3 \| {want:.2f} \[{want:.2f}, {want:.2f}\] \| {want:.2f} ", table)
+    assert re.search(r"\| grid \| 3 \| 1.00 \[1.00, 1.00\] \| 1.00 \[1.00, 1.00\] \| 8, 8, 8 \|", table)

@@ -79,7 +79,7 @@ def cornell_sdf(cornell):
 
 
 @pytest.mark.parametrize("method", method_names())
-@pytest.mark.parametrize("n", [5, 13])
+@pytest.mark.parametrize("n", [5, pytest.param(13, marks=pytest.mark.slow)])  # 13: slow, ~6 min in all
 def test_every_method_returns_exactly_the_budget(cornell, cornell_sdf, method, n):
     """Budget N gives exactly N probes, all usable: at least the clearance from geometry."""
     res = place(cornell, method=method, budget=n, options=CHEAP.get(method))

@@ -171,12 +171,14 @@ def test_shading_closed_form_one_sample():
     np.testing.assert_allclose(v, q[0], rtol=1e-6)
 
 
+@pytest.mark.slow  # float64 / extra refiner compiles: ~40 s on 2 cores
 def test_shading_gradient_matches_fd():
     prob = _shading_problem([[0.0, 0.0, 0.0], [0.5, 0.2, -0.1]], [[0.0, 0.0, 1.0], [0.0, 0.6, 0.8]])
     pos = jnp.asarray([[0.1, -0.2, 0.6], [0.4, 0.5, 0.3]], jnp.float64)
     check_grads(lambda p: shading_objective(prob, jnp.asarray(p)), (pos,), order=1, modes=("fwd", "rev"))
 
 
+@pytest.mark.slow  # float64 / extra refiner compiles: ~40 s on 2 cores
 def test_shading_is_an_objective_of_every_refiner():
     prob = _shading_problem([[0.0, 0.0, -0.9], [0.0, 0.0, 0.9]], [[0.0, 0.0, 1.0], [0.0, 0.0, -1.0]])
     start = jnp.asarray([[0.6, 0.6, 0.0]], jnp.float32)

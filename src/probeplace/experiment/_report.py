@@ -379,6 +379,51 @@ def _equal_count_table(rs, by, labels, scene, g_count: float, g_mse: float) -> l
     return md
 
 
+def seed_paired_ratio(pairs: list[tuple[float, float]]) -> tuple[float, float, float] | None:
+    """Geometric mean of ``method ÷ grid`` over seeds (each pair: one seed's two MSEs) with a 95 %
+    Student-t interval in log space — the seed-to-seed spread of placement, bake and reference noise
+    together. ``(ratio, lo, hi)``; the interval is (nan, nan) with one seed (it cannot be estimated)."""
+    logs = np.log([m / g for m, g in pairs if m > 0 and g > 0])
+    if not len(logs):
+        return None
+    mean = float(logs.mean())
+    if len(logs) < 2:
+        return math.exp(mean), math.nan, math.nan
+    from scipy import stats
+
+    half = float(stats.t.ppf(0.975, len(logs) - 1) * logs.std(ddof=1) / math.sqrt(len(logs)))
+    return math.exp(mean), math.exp(mean - half), math.exp(mean + half)
+
+
+def _paired_table(rs, labels, scene, count: int) -> list[str]:
+    """At exactly ``count`` probes (exact budgets): each method ÷ the grid on the same seed, glossy and
+    diffuse indirect, with the seed interval (:func:`seed_paired_ratio`) and the usable probes."""
+    at = [r for r in rs if r["n_probes"] == count]
+    grid = {r["seed"]: r for r in at if r["label"] == "grid"}
+    md = [
+        "",
+        f"## {scene}: exactly {count} probes, each seed against the grid's run on the same seed",
+        "",
+        "Geometric mean of method ÷ grid over seeds, 95 % t-interval in log space (an interval that "
+        "holds 1 cannot tell the method from the grid); usable = probes the bake found in free space.",
+        "",
+        "| method | seeds | glossy ind. ÷ grid [95 %] | diffuse ind. ÷ grid [95 %] | usable probes |",
+        "|---|---:|---|---|---|",
+    ]
+    for lab in labels:
+        runs = [r for r in at if r["label"] == lab and r["seed"] in grid]
+        if not runs:
+            continue
+        cells = []
+        for key in (PRIMARY, "mse_diffuse_indirect"):
+            pairs = [(v, w) for r in runs if (v := _mse(r, key)) and (w := _mse(grid[r["seed"]], key))]
+            q = seed_paired_ratio(pairs)
+            cells.append("—" if q is None else f"{q[0]:.2f} [{q[1]:.2f}, {q[2]:.2f}]")
+        usable = sorted((r.get("eval") or {}).get("n_probes_usable", r["n_probes"]) for r in runs)
+        md.append(f"| {lab} | {len(runs)} | {cells[0]} | {cells[1]} | {', '.join(map(str, usable))} |")
+    return md
+
+
 def _equal_time_table(rs, by, labels, scene, g_time: float, g_mse: float) -> list[str]:
     """Each method's best MSE among its runs no slower (placement + bake, no compilation) than the grid."""
     md = [
@@ -436,8 +481,13 @@ def _scene_tables(runs: list[dict], labels: list[str], scene: str) -> list[str]:
         np.median([_mse(r) for r in grid])
     )
     by = _group(rs)
+    paired = []
+    for count in sorted({r["n_probes"] for r in grid}):  # exact budgets: every method at the grid's count
+        if len({r["label"] for r in rs if r["n_probes"] == count}) > 1:
+            paired += _paired_table(rs, labels, scene, count)
     return (
-        _equal_count_table(rs, by, labels, scene, g_count, g_mse)
+        paired
+        + _equal_count_table(rs, by, labels, scene, g_count, g_mse)
         + _equal_time_table(rs, by, labels, scene, g_time, g_mse)
         + _equal_quality_table(by, labels, scene, g_mse)
     )
