@@ -22,57 +22,27 @@ import jax.numpy as jnp
 import optax
 import optimistix as optx
 
-from .._core import ConfigError
 from ._fitness import dynamic_float
-from ._refine import (
-    AbstractRefiner,
-    Objective,
-    RefineResult,
-    _check_objective,
-    _check_pos,
-    gradient_loop,
-    objective_fn,
-    penalty,
-)
+from ._refine import AbstractGradientRefiner, RefineResult, _check_pos, normalised_loss
 
 SOLVERS = ("bfgs", "nonlinear_cg", "adam")
 
 
-class OptimistixRefiner(AbstractRefiner):
+class OptimistixRefiner(AbstractGradientRefiner):
     """Minimise −objective + λ·penalty with an optimistix solver (module docstring).
 
     Attributes:
         solver: ``bfgs``, ``nonlinear_cg`` or ``adam`` (optax through ``optx.OptaxMinimiser``).
-        objective: a name of ``OBJECTIVES`` or a callable ``(pos, active) -> scalar``.
-        max_steps: solver steps at most (static).
         learning_rate: Adam's initial step, a fraction of the box side (halved on plateaus).
-        penalty_weight: λ.
-        xtol_voxels: convergence: every probe moved at most this many SDF voxels per step (a tenth of a
-            voxel: below the SDF's own resolution, the soft visibility cannot tell the positions apart).
-        ftol: convergence: the objective changed by at most ``ftol``·|f| per step (10⁻⁵: a sample of a
-            1 500-sample problem weighs ~7·10⁻⁴ of the coverage).
-        patience: accepted steps in a row that must meet both tolerances (static).
-        stall: steps in a row without an accepted move that count as converged (static).
+
+    The objective, step cap, penalty and convergence settings: :class:`AbstractGradientRefiner`.
     """
 
     solver: str = eqx.field(static=True, default="bfgs")
-    objective: Objective = eqx.field(static=True, default="coverage")
-    max_steps: int = eqx.field(static=True, default=300)
     learning_rate: float = eqx.field(default=0.02, converter=dynamic_float)
-    penalty_weight: float = eqx.field(default=1.0, converter=dynamic_float)
-    xtol_voxels: float = eqx.field(default=0.1, converter=dynamic_float)
-    ftol: float = eqx.field(default=1e-5, converter=dynamic_float)
-    patience: int = eqx.field(static=True, default=2)
-    stall: int = eqx.field(static=True, default=10)
 
     def __check_init__(self):
-        _check_objective(self.objective)
-        if self.solver not in SOLVERS:
-            raise ConfigError(f"OptimistixRefiner.solver must be one of {SOLVERS}, got {self.solver!r}")
-        if self.max_steps < 1:
-            raise ConfigError(f"OptimistixRefiner.max_steps must be ≥ 1, got {self.max_steps}")
-        if not (self.xtol_voxels > 0 and self.ftol > 0):
-            raise ConfigError("OptimistixRefiner.xtol_voxels and ftol must be positive")
+        self.check_settings(SOLVERS)
 
     def _solver(self, dtype):
         # The libraries' Cauchy tests are switched off (zero tolerances); gradient_loop decides.
@@ -98,8 +68,6 @@ def _run(cfg: OptimistixRefiner, problem, pos, active) -> RefineResult:
     lo, hi = problem.lo.astype(dtype), problem.hi.astype(dtype)
     span = hi - lo
     eps = jnp.asarray(1e-4, dtype)
-    obj = objective_fn(problem, cfg.objective)
-    lam = jnp.asarray(cfg.penalty_weight, dtype)
     u = jnp.clip((pos - lo[None]) / span[None], eps, 1 - eps)
     projected = cfg.solver == "adam"
     if projected:  # z = the position in box units, projected back into [0, 1] after every step
@@ -109,20 +77,10 @@ def _run(cfg: OptimistixRefiner, problem, pos, active) -> RefineResult:
         to_pos = lambda z: lo[None] + span[None] * jax.nn.sigmoid(z)
         z0 = jnp.log(u) - jnp.log1p(-u)
 
-    def raw_loss(z):
-        p = to_pos(z)
-        return -obj(p, active) + lam * penalty(problem, p)
-
-    # The loss is divided by its largest partial derivative at the start, so the first unit step moves
-    # the steepest coordinate by one logit (~a tenth of the box) whatever the objective's scale: nonlinear
-    # CG's backtracking line search starts at step 1 and only shrinks it, so on the raw soft coverage
-    # (|∂f/∂z| ~ 10⁻²) it crawled at ~10⁻⁵ per step for 200 steps. BFGS's first (identity-Hessian) step
-    # gets the same scale; Adam is invariant to it. Convergence is judged on the objective itself.
-    g0 = jnp.max(jnp.abs(jax.grad(raw_loss)(z0)))
-    inv_scale = 1.0 / jnp.where(jnp.isfinite(g0) & (g0 > 0), g0, 1.0)
+    raw = normalised_loss(cfg, problem, active, to_pos, z0)
 
     def loss(z, args):
-        return raw_loss(z) * inv_scale, None
+        return raw(z), None
 
     solver = cfg._solver(dtype)
     f_struct = jax.ShapeDtypeStruct((), dtype)
@@ -137,17 +95,4 @@ def _run(cfg: OptimistixRefiner, problem, pos, active) -> RefineResult:
             z, st, _ = solver.step(loss, z, None, {}, st, frozenset())
         return (jnp.clip(z, 0.0, 1.0) if projected else z), st
 
-    return gradient_loop(
-        problem,
-        cfg.objective,
-        step,
-        (z0, state),
-        lambda carry: to_pos(carry[0]),
-        pos,
-        active,
-        max_steps=cfg.max_steps,
-        xtol_voxels=cfg.xtol_voxels,
-        ftol=cfg.ftol,
-        patience=cfg.patience,
-        stall=cfg.stall,
-    )
+    return cfg.run_loop(problem, step, (z0, state), lambda carry: to_pos(carry[0]), pos, active)

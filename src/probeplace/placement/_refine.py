@@ -368,6 +368,82 @@ def _gibbs_run(cfg: GibbsRefiner, problem: PlacementProblem, pos, active, key, s
     )
 
 
+class AbstractGradientRefiner(AbstractRefiner):
+    """What the gradient refiners (``_optimistix``, ``_jaxopt``) share: the solver name, the objective,
+    the step cap, the clearance penalty's weight λ and :func:`gradient_loop`'s convergence test.
+
+    Attributes:
+        solver: the solver's name (each module's ``SOLVERS``).
+        objective: a name of ``OBJECTIVES`` or a callable ``(pos, active) -> scalar``.
+        max_steps: solver steps at most (static).
+        penalty_weight: λ.
+        xtol_voxels: convergence: every probe moved at most this many SDF voxels per step (a tenth of a
+            voxel: below the SDF's own resolution, the soft visibility cannot tell the positions apart).
+        ftol: convergence: the objective changed by at most ``ftol``·|f| per step (10⁻⁵: a sample of a
+            1 500-sample problem weighs ~7·10⁻⁴ of the coverage).
+        patience: accepted steps in a row that must meet both tolerances (static).
+        stall: steps in a row without an accepted move that count as converged (static).
+    """
+
+    solver: eqx.AbstractVar[str]
+    objective: Objective = eqx.field(static=True, default="coverage")
+    max_steps: int = eqx.field(static=True, default=300)
+    penalty_weight: float = eqx.field(default=1.0, converter=dynamic_float)
+    xtol_voxels: float = eqx.field(default=0.1, converter=dynamic_float)
+    ftol: float = eqx.field(default=1e-5, converter=dynamic_float)
+    patience: int = eqx.field(static=True, default=2)
+    stall: int = eqx.field(static=True, default=10)
+
+    def check_settings(self, solvers: tuple[str, ...]) -> None:
+        """ConfigError naming the class and the bad setting (called by the subclasses' checks)."""
+        name = type(self).__name__
+        _check_objective(self.objective)
+        if self.solver not in solvers:
+            raise ConfigError(f"{name}.solver must be one of {solvers}, got {self.solver!r}")
+        if self.max_steps < 1:
+            raise ConfigError(f"{name}.max_steps must be ≥ 1, got {self.max_steps}")
+        if not (self.xtol_voxels > 0 and self.ftol > 0):
+            raise ConfigError(f"{name}.xtol_voxels and ftol must be positive")
+
+    def run_loop(self, problem, step_fn, carry0, pos_fn, start, active) -> RefineResult:
+        """:func:`gradient_loop` with these settings."""
+        return gradient_loop(
+            problem,
+            self.objective,
+            step_fn,
+            carry0,
+            pos_fn,
+            start,
+            active,
+            max_steps=self.max_steps,
+            xtol_voxels=self.xtol_voxels,
+            ftol=self.ftol,
+            patience=self.patience,
+            stall=self.stall,
+        )
+
+
+def normalised_loss(cfg: AbstractGradientRefiner, problem, active, to_pos: Callable, z0) -> Callable:
+    """−objective + λ·penalty at ``to_pos(z)``, divided by its largest partial derivative at ``z0``.
+
+    Why: the first unit step then moves the steepest coordinate by one unit of ``z`` whatever the
+    objective's scale — nonlinear CG's and L-BFGS-B's backtracking line searches start at step 1 and only
+    shrink it, so on the raw soft coverage (|∂f/∂z| ~ 10⁻²) they crawled at ~10⁻⁵ per step for 200 steps.
+    BFGS's first (identity-Hessian) step gets the same scale; Adam is invariant to it. Convergence is
+    judged on the objective itself (:func:`gradient_loop`).
+    """
+    obj = objective_fn(problem, cfg.objective)
+    lam = jnp.asarray(cfg.penalty_weight, z0.dtype)
+
+    def raw_loss(z):
+        p = to_pos(z)
+        return -obj(p, active) + lam * penalty(problem, p)
+
+    g0 = jnp.max(jnp.abs(jax.grad(raw_loss)(z0)))
+    inv_scale = 1.0 / jnp.where(jnp.isfinite(g0) & (g0 > 0), g0, 1.0)
+    return lambda z: raw_loss(z) * inv_scale
+
+
 def gradient_loop(
     problem: PlacementProblem,
     objective: Objective,
