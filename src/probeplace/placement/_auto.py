@@ -39,7 +39,6 @@ import time
 import jax
 import jax.numpy as jnp
 import numpy as np
-from scipy import spatial
 
 from .._core import ConfigError, host_rng
 from ._fitness import PlacementProblem, binary_visibility, probe_clearance, witness_positions
@@ -424,11 +423,11 @@ def _refine_if_no_worse(
     res = refiner.refine(refine_problem or cov.problem, jnp.asarray(pos), key=key)
     refine_status, refined = res.status_message(), False
     new_pos = np.asarray(res.pos, np.float32)
-    new_rows = _visibility(cov, new_pos, np.arange(len(cov.cols)))
-    new_cov = _coverage_of(new_rows, cov.a)
     clear = np.all(probe_clearance(cov.problem, new_pos) >= float(cov.problem.clearance))
     if res.improved() and np.all(np.isfinite(new_pos)) and clear:
-        pos, rows, coverage, refined = new_pos, new_rows, new_cov, True
+        # PERF: the full visibility rows only for a kept set (the acceptance no longer reads them)
+        rows = _visibility(cov, new_pos, np.arange(len(cov.cols)))
+        pos, coverage, refined = new_pos, _coverage_of(rows, cov.a), True
     cov.timings["refine_s"] = time.perf_counter() - t1
     return pos, rows, coverage, refine_status, refined
 
@@ -517,16 +516,3 @@ def _search(
         refine_status=refine_status,
         refined=refined,
     )
-
-
-def farthest_point_subset(points: np.ndarray, k: int) -> np.ndarray:
-    """Indices of k points spread by farthest-point sampling (deterministic: starts at the first)."""
-    tree = spatial.cKDTree(points)
-    del tree
-    pick = [0]
-    dist = np.linalg.norm(points - points[0], axis=1)
-    for _ in range(min(k, len(points)) - 1):
-        i = int(np.argmax(dist))
-        pick.append(i)
-        dist = np.minimum(dist, np.linalg.norm(points - points[i], axis=1))
-    return np.asarray(pick)
