@@ -14,6 +14,7 @@ $(STAMP): pyproject.toml constraints.txt
 	@test -x $(PY) || $(PYTHON) -m venv $(VENV)
 	$(PY) -m pip install -q --upgrade "pip==26.3"
 	$(PY) -m pip install -q -c constraints.txt -e '.[dev]'
+	$(PY) -m pip install -q --no-deps -c constraints.txt hydra-ray-launcher==1.2.2
 	@touch $(STAMP)
 
 # Test tools outside PyPI. The Khronos glTF-Validator (npm, pinned by package-lock.json) checks exported
@@ -38,7 +39,7 @@ TOOLS := $(STAMP) $(NODE_STAMP) $(LLVM_STAMP)
 # `make demo`: the cornell_comparison preset (every placement method on the Cornell box, baked and
 # evaluated; configs/experiment/cornell_comparison.yaml), then its report:
 # results/cornell_comparison/report/report.md. Finished runs are kept: a re-run only redoes what is missing.
-demo: $(STAMP)
+demo: $(STAMP) $(LLVM_STAMP)
 	@$(PY) experiments/run.py +experiment=cornell_comparison; rc=$$?; \
 	$(PY) experiments/report.py results/cornell_comparison || exit 1; exit $$rc
 
@@ -68,8 +69,10 @@ lint: $(STAMP)
 bench: $(TOOLS)
 	for b in benchmarks/[a-z]*.py; do $(PY) $$b || exit 1; done
 
-# Sweeps on Ray (hydra/launcher=ray): ray and the launcher's other requirements, then the launcher itself
-# without its boto3 requirement (AWS autoscaling only; it cannot be resolved next to python-dateutil 4).
+# The test set-up ($(STAMP)) installs Ray's core (dev extra) and hydra-ray-launcher without its boto3
+# requirement (AWS autoscaling only; it cannot be resolved next to python-dateutil 4): enough for the Ray
+# sweep test on a local instance. Sweeps on a Ray cluster (hydra/launcher=ray) also want ray[default]
+# (dashboard, autoscaler) and the launcher's other requirements:
 cluster: $(STAMP)
 	$(PY) -m pip install -q -c constraints.txt -e '.[dev,cluster]'
 	$(PY) -m pip install -q --no-deps -c constraints.txt hydra-ray-launcher==1.2.2

@@ -4,40 +4,40 @@ from __future__ import annotations
 
 import argparse
 import logging
+import os
 import sys
 
 from ._core import ProbeplaceError
 
 
 def _cmd_scenes(args: argparse.Namespace) -> int:
+    """One line per scene; a file named like a built-in is marked: the name loads the built-in."""
     from .scene import list_scenes
 
-    for entry in list_scenes():
-        print(f"{entry.name:<24} {entry.kind:<9} {entry.source}")
+    entries = list_scenes()
+    builtin = {e.name for e in entries if e.kind == "builtin"}
+    for entry in entries:
+        note = ""
+        if entry.kind == "file" and entry.name in builtin:
+            note = "  (shadowed: the name loads the built-in; load this file by its path)"
+        print(f"{entry.name:<24} {entry.kind:<9} {entry.source}{note}")
     return 0
 
 
 def _cmd_demo(args: argparse.Namespace) -> int:
+    from ._core._checks import check_writable_folder
     from .demo import load_demo_config, run_demo
 
     config = load_demo_config(args.config) if args.config else None
+    check_writable_folder(args.out, "--out")
     return run_demo(out_dir=args.out, config=config)
 
 
 # --- export (issue 8) ---
 def _cmd_export(args: argparse.Namespace) -> int:
-    import dataclasses
+    from .export import export_probes
 
-    from .export import export_probes, read_probes
-
-    probes = read_probes(args.probes, sh_source=args.sh_source)
-    if args.probe_set:  # method, units and config of the placement, for a baked .npz
-        placed = read_probes(args.probe_set)
-        if placed.n != probes.n:
-            raise ProbeplaceError(f"--probe-set has {placed.n} probes, {args.probes} has {probes.n}")
-        probes = dataclasses.replace(
-            probes, method=placed.method, units_m=placed.units_m, metadata=placed.metadata
-        )
+    probes = _export_input(args)
     opts: dict = {}
     if args.format in ("gltf", "unity", "godot") and args.to_metres:
         opts["to_metres"] = True
@@ -48,6 +48,31 @@ def _cmd_export(args: argparse.Namespace) -> int:
     for path in export_probes(probes, args.format, args.out, **opts):
         print(path)
     return 0
+
+
+def _export_input(args: argparse.Namespace):
+    """The probes ``export`` writes, every input and the output checked first: the output can be
+    written, a ``.npz`` is a NumPy archive, the set has active probes."""
+    import dataclasses
+
+    from ._core._checks import check_npz_archive, check_writable_file
+    from .export import read_probes
+
+    check_writable_file(args.out, "--out")
+    for flag, path in (("PROBES", args.probes), ("--probe-set", args.probe_set)):
+        if path and str(path).endswith(".npz"):
+            check_npz_archive(path, flag)
+    probes = read_probes(args.probes, sh_source=args.sh_source)
+    if probes.n == 0 or not bool(probes.active.any()):
+        raise ProbeplaceError(f"{args.probes}: the probe set has no active probes; nothing to export")
+    if args.probe_set:  # method, units and config of the placement, for a baked .npz
+        placed = read_probes(args.probe_set)
+        if placed.n != probes.n:
+            raise ProbeplaceError(f"--probe-set has {placed.n} probes, {args.probes} has {probes.n}")
+        probes = dataclasses.replace(
+            probes, method=placed.method, units_m=placed.units_m, metadata=placed.metadata
+        )
+    return probes
 
 
 def _add_export_parser(sub) -> None:
@@ -77,32 +102,25 @@ def _add_export_parser(sub) -> None:
 
 # --- place (placement helper) ---
 def _cmd_place(args: argparse.Namespace) -> int:
-    """Place probes (``placement.place``), write the probe set with its record and the top view."""
-    from pathlib import Path
-
+    """Place probes (``placement.place``), write the top view and then the probe set (last: a probe set
+    on disk means the command finished)."""
     from ._core import save_probe_set
     from .placement import place, save_top_view
     from .scene import load_scene, scene_overrides_from_args
 
+    out, png, budget, region = _checked_place_args(args)
     scene = load_scene(args.scene, overrides=scene_overrides_from_args(args))
-    budget = "auto" if args.budget == "auto" else _positive_int(args.budget)
     if args.memory_budget is not None:
         from .placement import count_for_memory
         from .probes import BakeConfig, probe_bytes
 
-        if budget != "auto":
-            raise ProbeplaceError("give --budget or --memory-budget, not both")
         bake = BakeConfig(radiance_res=args.radiance_res, geometry_res=args.geometry_res)
         budget = count_for_memory(args.memory_budget, probe_bytes(scene, bake))
-    refiner = None if args.refiner == "none" else args.refiner
-    region = (
-        None if args.height_band is None else {"height": _number_list(args.height_band, 2, "--height-band")}
-    )
     res = place(
         scene,
         method=args.method,
         budget=budget,
-        refiner=refiner,
+        refiner=None if args.refiner == "none" else args.refiner,
         objective=args.objective,
         seed=args.seed,
         target=args.target,
@@ -110,13 +128,49 @@ def _cmd_place(args: argparse.Namespace) -> int:
         clearance=args.clearance,
         region=region,
     )
-    out = Path(args.out)
-    save_probe_set(out, res.probes, units_m=scene.unit_m, metadata={**res.metadata, "scene": args.scene})
-    png = Path(args.png) if args.png else out.with_suffix(".png")
     summary = f"{res.n_probes} probes, coverage {res.coverage:.4f}"
-    save_top_view(scene, res.probes.pos_world, png, title=f"{args.scene}: {summary}")
+    try:
+        save_top_view(scene, res.probes.pos_world, png, title=f"{args.scene}: {summary}")
+        save_probe_set(out, res.probes, units_m=scene.unit_m, metadata={**res.metadata, "scene": args.scene})
+    except BaseException:  # interrupted or failed: leave no top view without its probe set
+        png.unlink(missing_ok=True)
+        raise
     print(f"{summary}, {res.timings['total_s']:.1f} s -> {out}, {png}")
     return 0
+
+
+def _checked_place_args(args: argparse.Namespace):
+    """Every ``place`` option checked before the scene is loaded: (out, png, budget, region)."""
+    from pathlib import Path
+
+    from ._core._checks import check_writable_file
+    from .placement import PlaceRequest, get_method, parse_bytes
+
+    budget = "auto" if args.budget == "auto" else _positive_int(args.budget)
+    if args.memory_budget is not None:
+        if budget != "auto":
+            raise ProbeplaceError("give --budget or --memory-budget, not both")
+        parse_bytes(args.memory_budget)
+        from .probes import BakeConfig
+
+        BakeConfig(radiance_res=args.radiance_res, geometry_res=args.geometry_res)
+    region = (
+        None if args.height_band is None else {"height": _number_list(args.height_band, 2, "--height-band")}
+    )
+    refiner = None if args.refiner == "none" else args.refiner
+    PlaceRequest(
+        budget=budget,
+        refiner=refiner,
+        objective=args.objective,
+        seed=args.seed,
+        target=args.target,
+        clearance=args.clearance,
+        region=region,
+    )
+    get_method(args.method).parse_options(_place_options(args.option))  # unknown or bad options
+    out = check_writable_file(args.out, "--out")
+    png = check_writable_file(args.png or out.with_suffix(".png"), "--png")
+    return Path(out), Path(png), budget, region
 
 
 def _place_options(items: list[str]) -> dict:
@@ -156,17 +210,44 @@ def _positive_int(text: str) -> int:
     return n
 
 
+class _HelpFormatter(argparse.ArgumentDefaultsHelpFormatter):
+    """Each option's help ends with its default, unless the default is ``None``, ``False`` or empty (the
+    help says what happens then) or the help already names it."""
+
+    def _get_help_string(self, action: argparse.Action) -> str | None:
+        text = action.help or ""
+        d = action.default
+        if d is None or d is False or d is argparse.SUPPRESS or d == [] or "default" in text:
+            return text
+        return super()._get_help_string(action)
+
+
+def _add_log_options(parser: argparse.ArgumentParser, default) -> None:
+    """``-v``/``--verbose`` and ``-q``/``--quiet``, before the subcommand (``default`` False) or after it
+    (``default`` SUPPRESS: a subcommand's parser then never overwrites what was given before it)."""
+    group = parser.add_mutually_exclusive_group()
+    group.add_argument("-v", "--verbose", action="store_true", default=default, help="log at INFO level")
+    group.add_argument(
+        "-q", "--quiet", action="store_true", default=default, help="log warnings only; no progress bars"
+    )
+
+
 def build_parser() -> argparse.ArgumentParser:
     from . import __version__
 
-    p = argparse.ArgumentParser(prog="probeplace", description=__doc__)
+    p = argparse.ArgumentParser(prog="probeplace", description=__doc__, formatter_class=_HelpFormatter)
     p.add_argument("--version", action="version", version=f"probeplace {__version__}")
-    p.add_argument("-v", "--verbose", action="store_true", help="log at INFO level")
+    _add_log_options(p, False)
     sub = p.add_subparsers(dest="command", required=True)
     s = sub.add_parser("scenes", help="list built-in scenes and scenes found on the search path")
     s.set_defaults(func=_cmd_scenes)
-    d = sub.add_parser("demo", help="run the default experiment on the built-in Cornell box")
-    d.add_argument("--out", default="results/demo", help="output folder (default: results/demo)")
+    d = sub.add_parser(
+        "demo",
+        help="the stage tour on the built-in Cornell box: scene, SDF, surface samples, G-buffer, reference "
+        "render, automatic placement, bake and export, into one folder (`make demo` instead runs the "
+        "cornell_comparison experiment)",
+    )
+    d.add_argument("--out", default="results/demo", help="output folder")
     d.add_argument("--config", help="YAML config (default: built-in values, as in configs/demo.yaml)")
     d.set_defaults(func=_cmd_demo)
     _add_place_parser(sub)
@@ -174,6 +255,11 @@ def build_parser() -> argparse.ArgumentParser:
     from .evaluate._cli import add_parser as _add_evaluate  # --- evaluate (issue 4) ---
 
     _add_evaluate(sub)
+    for name, parser in sub.choices.items():  # every subcommand: defaults in its help, -v/-q after it
+        parser.formatter_class = _HelpFormatter
+        if parser.description is None:
+            parser.description = next(a.help for a in sub._choices_actions if a.dest == name)
+        _add_log_options(parser, argparse.SUPPRESS)
     return p
 
 
@@ -210,8 +296,18 @@ def _add_place_parser(sub) -> None:
         help="instead of --budget: the most probes whose baked maps fit in SIZE (e.g. 64MiB) at "
         "--radiance-res / --geometry-res",
     )
-    pl.add_argument("--radiance-res", type=int, default=None, help="bake radiance resolution (memory budget)")
-    pl.add_argument("--geometry-res", type=int, default=None, help="bake geometry resolution (memory budget)")
+    pl.add_argument(
+        "--radiance-res",
+        type=int,
+        default=None,
+        help="bake radiance resolution of --memory-budget (default: derived from the scene)",
+    )
+    pl.add_argument(
+        "--geometry-res",
+        type=int,
+        default=None,
+        help="bake geometry resolution of --memory-budget (default: --radiance-res)",
+    )
     pl.add_argument(
         "--clearance",
         type=float,
@@ -220,27 +316,70 @@ def _add_place_parser(sub) -> None:
         "probes are relocated",
     )
     pl.add_argument(
-        "--height-band", default=None, metavar="MIN,MAX", help="keep probes this high above the floor"
+        "--height-band",
+        default=None,
+        metavar="MIN,MAX",
+        help="keep probes this high above the floor, scene units (default: anywhere)",
     )
-    pl.add_argument("--refiner", default="none", help=", ".join(("none", *REFINERS)))
-    pl.add_argument("--objective", default="coverage", choices=OBJECTIVES)
-    pl.add_argument("--target", type=float, default=1.0, help="coverage target (default 1.0)")
-    pl.add_argument("--seed", type=int, default=0)
-    pl.add_argument("--out", default="probes.json", help="ProbeSet file (default probes.json)")
+    pl.add_argument(
+        "--refiner", default="none", help="refine the placement: " + ", ".join(("none", *REFINERS))
+    )
+    pl.add_argument("--objective", default="coverage", choices=OBJECTIVES, help="the refiner's objective")
+    pl.add_argument("--target", type=float, default=1.0, help="coverage target of --budget auto, in (0, 1]")
+    pl.add_argument("--seed", type=int, default=0, help="random seed")
+    pl.add_argument("--out", default="probes.json", help="ProbeSet JSON file to write")
     pl.add_argument("--png", default=None, help="top view PNG (default: --out with .png)")
     pl.set_defaults(func=_cmd_place)
 
 
+def _os_error_text(e: OSError) -> str:
+    """An OSError as one line: what failed on which file (``Permission denied: out/p.json``)."""
+    if e.filename is not None and e.strerror:
+        return f"{e.strerror}: {e.filename}"
+    return str(e) or type(e).__name__
+
+
+def _configure(args: argparse.Namespace) -> None:
+    """Logging level and progress bars of ``-v`` / ``-q``."""
+    from ._core._progress import set_progress
+
+    level = logging.INFO if args.verbose else logging.WARNING
+    logging.basicConfig(level=level, format="%(levelname)s %(message)s")
+    if args.verbose or args.quiet:
+        logging.getLogger("probeplace").setLevel(level)
+    set_progress(not args.quiet)
+
+
 def main(argv: list[str] | None = None) -> int:
-    args = build_parser().parse_args(argv)
-    logging.basicConfig(
-        level=logging.INFO if args.verbose else logging.WARNING, format="%(levelname)s %(message)s"
-    )
+    """Run the ``probeplace`` command; returns its exit status. A user's mistake (bad input, a file that
+    cannot be read or written) is one line ``probeplace: error: ...`` and status 2; Ctrl-C is one line
+    ``probeplace: interrupted`` and status 130 (with ``argv`` None, the process's own command, the
+    process ends there). Neither prints a traceback."""
+    from ._core._interrupt import interruptible
+
     try:
-        return int(args.func(args) or 0)
+        with interruptible():
+            parser = build_parser()
+            args = parser.parse_args(argv)
+            if args.verbose and args.quiet:
+                parser.error("-v/--verbose and -q/--quiet exclude each other")
+            _configure(args)
+            return int(args.func(args) or 0)
     except ProbeplaceError as e:  # user-facing errors: one clear line, no traceback
-        print(f"probeplace: error: {e}", file=sys.stderr)
-        return 2
+        return _fail(str(e))
+    except OSError as e:  # a file the user named could not be read or written
+        return _fail(_os_error_text(e))
+    except KeyboardInterrupt:
+        print("probeplace: interrupted", file=sys.stderr, flush=True)
+        if argv is None:  # the process's own command: end now, before interpreter shutdown meets
+            sys.stdout.flush()  # XLA threads cut short (seen: a segfault, status -11, instead of 130)
+            os._exit(130)
+        return 130
+
+
+def _fail(message: str) -> int:
+    print(f"probeplace: error: {' '.join(message.split())}", file=sys.stderr)
+    return 2
 
 
 if __name__ == "__main__":

@@ -17,9 +17,9 @@ from pathlib import Path
 import jax
 import jax.numpy as jnp
 import numpy as np
-from tqdm.auto import tqdm
 
 from ._core import Scene, load_pyplot
+from ._core._progress import progress_bar
 
 DEMO_WIDTH = 128
 DEMO_HEIGHT = 128
@@ -273,7 +273,7 @@ def run_demo(out_dir: str | Path = "results/demo", config: dict | None = None) -
         ("automatic placement", placed),
         ("bake + export", lambda: _stage_bake(state["scene"], state["probes"], cfg["bake"], partial)),
     ]
-    for name, fn in tqdm(stages, desc="demo", unit="stage"):
+    for name, fn in progress_bar(stages, desc="demo", unit="stage"):
         t0 = time.perf_counter()
         result = fn()
         result["seconds"] = round(time.perf_counter() - t0, 3)

@@ -82,3 +82,39 @@ def test_lit_room_is_not_darkened_by_visibility(rooms_lf):
     # Seen from A's floor every direction ends on a lit surface (or a doorway into lit B/C): E = π. The
     # bake's cosine quadrature and texels straddling the dark wall's edge cost a few percent.
     np.testing.assert_allclose(e.mean(), np.pi, rtol=0.05)
+
+
+def test_light_leak_flags_injected_leaks_not_reference_noise():
+    """The metric on a synthetic reference with known per-pixel noise: probe = the reference's true
+    value + Gaussian noise of up to 2 standard errors everywhere (never flagged at k = 4), plus injected
+    leaks of 10 standard errors on a known set of pixels (each flagged). Pixels whose reference variance
+    is 0 (all paths returned the same value: standard error unknown) are never judged, however bright
+    the probe is there; non-hit pixels neither."""
+    from probeplace.evaluate._decompose import LEAK_SIGMAS, light_leak
+
+    rng = np.random.default_rng(0)
+    h, w = 40, 50
+    ref = rng.uniform(0.1, 1.0, (h, w, 3))
+    se = rng.uniform(0.01, 0.05, (h, w))  # per-pixel standard error, the same in every channel
+    var = np.repeat((se**2)[..., None], 3, axis=-1)
+    lum_se = se  # Σ_c a_c σ_c with equal σ_c: the Rec. 709 weights sum to 1
+    z = np.clip(rng.normal(0.0, 1.0, (h, w)), -2.0, 2.0)  # noise-level differences, |z| ≤ 2 < k
+    probe = ref + (z * lum_se)[..., None]
+    leak_px = rng.random((h, w)) < 0.05
+    probe[leak_px] += 10.0 * lum_se[leak_px][:, None]
+    unknown = rng.random((h, w)) < 0.2  # zero-variance reference pixels: standard error unknown
+    var[unknown] = 0.0
+    probe[unknown] += 100.0
+    judge = np.ones((h, w), bool)
+    judge[:, :3] = False  # pixels with no primary hit
+    probe[:, :3] += 100.0
+
+    out = light_leak(ref, var, probe, judge)
+    assert LEAK_SIGMAS == 4.0
+    np.testing.assert_array_equal(out["judged"], judge & ~unknown)
+    np.testing.assert_array_equal(out["flagged"], leak_px & judge & ~unknown)
+    want = float(np.sum(np.where(out["flagged"], ((probe - ref) @ [0.2126, 0.7152, 0.0722]), 0.0)))
+    assert out["energy"] == pytest.approx(want / (h * w), rel=1e-12)  # float64 sums of the same terms
+    # the same image with no leak: nothing flagged, whatever the noise
+    clean = light_leak(ref, var, ref + (z * lum_se)[..., None], judge)
+    assert not clean["flagged"].any() and clean["energy"] == 0.0

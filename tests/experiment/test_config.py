@@ -10,6 +10,7 @@ import pytest
 from probeplace._core import ConfigError
 from probeplace.experiment import ExperimentConfig, run, run_name, to_config
 from probeplace.placement import get_method, method_names
+from probeplace.render import BACKEND_CHOICES
 
 from ._util import CONFIGS, PRESETS, compose, sweep_params
 
@@ -103,8 +104,8 @@ BAD = [
     ({"bake": {"radiance_res": 12}}, "bake.radiance_res: must be a power of two"),
     ({"bake": {"geometry_res": 48}}, "bake.geometry_res: must be a power of two >= 2, got 48"),
     ({"bake": {"geometry_res": 1}}, "bake.geometry_res: must be a power of two >= 2, got 1"),
-    ({"bake": {"backend": "embree"}}, "bake.backend: must be one of ('jax', 'mitsuba'), got 'embree'"),
-    ({"eval": {"backend": "cuda"}}, "eval.backend: must be one of ('jax', 'mitsuba'), got 'cuda'"),
+    ({"bake": {"backend": "embree"}}, f"bake.backend: must be one of {BACKEND_CHOICES}, got 'embree'"),
+    ({"eval": {"backend": "cuda"}}, f"eval.backend: must be one of {BACKEND_CHOICES}, got 'cuda'"),
     ({"bake": {"spp": 0}}, "bake.spp"),
     ({"tracer": {"max_depth": 2}}, "tracer.max_depth"),
     ({"eval": {"shading": "phong"}}, "eval.shading"),
@@ -112,6 +113,10 @@ BAD = [
     ({"bake": {"n_sub": 0}}, "bake.n_sub: must be a positive int, got 0"),
     ({"bake": {"inside_test": "ask"}}, "bake.inside_test: must be one of"),
     ({"eval": {"glossy_filter": "blur"}}, "eval.glossy_filter: must be one of"),
+    (
+        {"eval": {"trace_engine": "fast"}},
+        "eval.trace_engine: must be one of ('per_ray', 'wavefront'), got 'fast'",
+    ),
     ({"bake": {"enabled": False}}, "eval.enabled"),
     ({"export": {"formats": ["fbx"]}}, "export.formats[0]"),
     ({"scene": {"translate_frac": [1.0, 0.0, 0.0]}}, "scene.translate_frac"),
@@ -208,6 +213,13 @@ def test_backend_and_geometry_res_defaults_and_overrides():
     assert (cfg.bake.backend, cfg.bake.geometry_res, cfg.eval.backend) == ("jax", None, "jax")
     cfg = to_config(compose(["bake.backend=mitsuba", "bake.geometry_res=64", "eval.backend=mitsuba"]))
     assert (cfg.bake.backend, cfg.bake.geometry_res, cfg.eval.backend) == ("mitsuba", 64, "mitsuba")
+
+
+def test_trace_engine_reaches_the_evaluation():
+    from probeplace.experiment._schema import eval_config
+
+    assert eval_config(to_config(compose([]))).trace.engine == "per_ray"
+    assert eval_config(to_config(compose(["eval.trace_engine=wavefront"]))).trace.engine == "wavefront"
 
 
 @pytest.mark.parametrize(

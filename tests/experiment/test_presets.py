@@ -10,6 +10,7 @@ import pytest
 
 from probeplace._core import ConfigError, load_probe_set
 from probeplace.experiment import is_complete, make_report, run, to_config
+from probeplace.render import resolve_backend
 
 from ._util import PRESETS, compose, sweep_params
 
@@ -67,7 +68,7 @@ def _check_run(cfg, res):
         assert m["timings"]["place_bake_run_s"] == pytest.approx(
             m["timings"]["place_run_s"] + m["timings"]["bake_run_s"], rel=1e-12
         )
-        assert m["bake_settings"]["backend"] == cfg.bake.backend
+        assert m["bake_settings"]["backend"] == resolve_backend(cfg.bake.backend)  # "auto" resolved
         assert m["bake_settings"]["geometry_res"] == (cfg.bake.geometry_res or cfg.bake.radiance_res)
         assert "probes_baked.npz" in names
         with np.load(d / "probes_baked.npz") as z:
@@ -111,11 +112,17 @@ FAST = [p for p in PRESETS if "sponza" not in p and p != "equal_count_small"]
 def test_preset_runs_tiny(preset, evaluate, tmp_path):
     """Default run: the presets without the evaluation (its compile dominates: ~1-4 min on 2 cores;
     tests/evaluate covers it); slow: with it, and the report's charts from the real run."""
-    cfg, res = _tiny_run(preset, tmp_path, [] if evaluate else ["eval=none"])
+    # `make demo`'s bake keeps its "auto" backend (TINY sets jax): resolved once, recorded resolved
+    demo = ["bake.backend=auto"] if preset == "cornell_comparison" else []
+    cfg, res = _tiny_run(preset, tmp_path, ([] if evaluate else ["eval=none"]) + demo)
     m = _check_run(cfg, res)
     if preset == "stability":
         assert not cfg.bake.enabled and cfg.scene.name == "rooms"
         assert isinstance(m["failures"], list)
+    if preset == "cornell_comparison":
+        assert cfg.bake.backend == "auto" and m["bake_settings"]["backend"] == resolve_backend("auto")
+        preset_cfg = to_config(compose(["+experiment=cornell_comparison", "method=skeleton"]))
+        assert preset_cfg.bake.backend == preset_cfg.eval.backend == "auto"
     # a second call finds the run finished and does nothing
     again = run(dataclasses.replace(cfg, progress=True))
     assert again.skipped and again.out_dir == res.out_dir

@@ -43,6 +43,9 @@ def _fake_run(
     rotate=0.0,
     cov=1.0,
     compile_s: float | None = None,
+    scale: float = 1.0,
+    bytes_per_probe: int = 1000,
+    leak: tuple[int, int] | None = None,
 ):
     import jax.numpy as jnp
 
@@ -58,7 +61,7 @@ def _fake_run(
     rng = np.random.default_rng(n)
     pos = rng.uniform(50.0, 500.0, (n, 3)).astype(np.float32)
     save_probe_set(d / "probes.json", ProbeSet(pos_world=jnp.asarray(pos), active=jnp.ones(n, bool)))
-    mse = A[label] / n
+    mse = scale * A[label] / n
     metrics = {
         "experiment": exp.name,
         "run": d.name,
@@ -73,7 +76,7 @@ def _fake_run(
         "n_probes": n,
         "coverage": cov,
         "timings": _timings(n, compile_s),
-        "memory": {"bytes_total": 1000 * n},
+        "memory": {"bytes_per_probe": bytes_per_probe, "bytes_total": bytes_per_probe * n},
         "failures": [] if cov == 1.0 else ["coverage<100%"],
         "eval": {
             "mse_glossy_indirect": mse,
@@ -83,6 +86,7 @@ def _fake_run(
             "mse_black_glossy_indirect": 0.5,
             "shading_s_per_frame": 0.01 * n,
             "unresolved_share": 0.0,
+            **({} if leak is None else {"light_leak_pixels": leak[0], "light_leak_judged_pixels": leak[1]}),
         },
     }
     (d / "metrics.json").write_text(json.dumps(metrics))
@@ -123,6 +127,7 @@ def test_report_from_saved_files(tmp_path):
         assert (report.parent / f"{png}.png").stat().st_size > 1000
         assert f"({png}.png)" in text
     assert len(list((report.parent / "top_views").glob("*.png"))) == sum(map(len, COUNTS.values()))
+    assert text.count("](top_views/") == sum(map(len, COUNTS.values()))
     assert unfinished.name not in text
     assert text.count("| cornell_box__") == sum(map(len, COUNTS.values()))
 
@@ -130,9 +135,9 @@ def test_report_from_saved_files(tmp_path):
     g_mse = A["grid"] / g_count
     eq_count = text.split("equal probe count")[1].split("##")[0]
     assert f"A black image (no indirect light) scores 0.5 here (÷ grid {0.5 / g_mse:.2f})" in eq_count
-    for label in ("grid", "skeleton"):  # the grid's count lies inside both measured ranges: interpolated
+    for label in ("grid", "skeleton"):  # both ran exactly 8 probes: measured there, not interpolated
         v = A[label] / g_count
-        assert re.search(rf"\| {label} \| {v:.3g} \| {v / g_mse:.2f} \| interpolated", eq_count)
+        assert f"| {label} | {v:.3g} | {v / g_mse:.2f} | measured at exactly 8 (1 runs) |" in eq_count
     assert re.search(r"\| vardis \| [^|]+ \| [^|]+ \| nearest count measured: 4", eq_count)
     eq_quality = text.split("equal quality")[1].split("##")[0]
     for label, counts in COUNTS.items():

@@ -125,6 +125,7 @@ def test_cornell_grid_agrees_with_exact_casting(cornell_grid):
     assert agree[resolved].mean() >= 0.99
 
 
+@pytest.mark.slow  # 55 s on 2 cores (CI time): it compiles the two-level and flat marches too
 def test_hierarchies_are_conservative(cornell_grid):
     """The min-MIP bounds only skip cells where every fine texel says "in front": same answers."""
     scene, _, lf = cornell_grid
@@ -139,6 +140,7 @@ def test_hierarchies_are_conservative(cornell_grid):
         np.testing.assert_allclose(np.asarray(outs[h].t), np.asarray(outs["flat"].t), rtol=1e-4)
 
 
+@pytest.mark.slow  # 20 s on 2 cores (CI time)
 def test_voxel_index_tracer_agrees(cornell_grid):
     scene, pos, lf = cornell_grid
     index = voxel_index(lf, scene.bounds, k=4, max_voxels_per_axis=8)

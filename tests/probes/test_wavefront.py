@@ -124,6 +124,7 @@ def test_wavefront_matches_per_ray_cornell(cornell_case):
     assert out.t.dtype == jnp.float32
 
 
+@pytest.mark.slow  # 22 s on 2 cores (CI time); the default run holds the tracer identity at one batch size
 def test_batch_size_and_refill_do_not_change_results(cornell_case):
     """Fewer lanes (so refill and the tail compaction run far more often) and another refill period give
     the same results; the integer fields are compared exactly, t as in the module docstring."""

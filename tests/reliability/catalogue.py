@@ -369,6 +369,43 @@ def _dark_sdf_ok(c):
     return build_sdf(c.room(), cache_dir=False)
 
 
+# ------------------------------------------------------------------ command line and runner (issue 19)
+def _cli(check: str, *argv: str, files: dict | None = None):
+    """Parse ``probeplace argv`` with the real parser (``<dir>`` is the entry's folder, ``files`` are
+    written there first) and run the command's up-front check ``check`` (``module.function``) on it."""
+
+    def run(c):
+        import importlib
+
+        from probeplace.cli import build_parser
+
+        for name, data in (files or {}).items():
+            c.write(name, data)
+        args = build_parser().parse_args([a.replace("<dir>", str(c.tmp)) for a in argv])
+        mod, name = check.rsplit(".", 1)
+        return getattr(importlib.import_module(mod), name)(args)
+
+    return run
+
+
+def _runner(cfg: dict):
+    def run(c):
+        from probeplace.experiment import to_config
+
+        return to_config(cfg)
+
+    return run
+
+
+def _probe_doc(pos, active=None) -> str:
+    return json.dumps({"format": "probeplace.ProbeSet/1", "positions": pos,
+                       "active": [True] * len(pos) if active is None else active})  # fmt: skip
+
+
+_EVAL = ("probeplace.evaluate._cli._checked_inputs", "evaluate", "--scene", "cornell_box")
+_ONE_PROBE = {"p.json": _probe_doc([[200.0, 250.0, 200.0]])}
+
+
 CATALOGUE: list[Entry] = [
     # --- scene files ------------------------------------------------------------------------------
     *[
@@ -819,6 +856,156 @@ CATALOGUE: list[Entry] = [
         _place(refiner="annealing"),
         ConfigError,
         r"refiner must be one of .* or None, got 'annealing'",
+    ),
+    Entry(
+        "cli-out-under-a-file",
+        "cli",
+        "`place --out` under a path whose parent is a file",
+        _cli(
+            "probeplace.cli._checked_place_args",
+            "place",
+            "cornell_box",
+            "--out",
+            "<dir>/f/p.json",
+            files={"f": "x"},
+        ),
+        ConfigError,
+        r"--out: cannot create .*/f/p\.json: .*/f is a file, not a folder",
+    ),
+    Entry(
+        "cli-out-is-a-folder",
+        "cli",
+        "`place --out` naming a folder",
+        _cli("probeplace.cli._checked_place_args", "place", "cornell_box", "--out", "<dir>"),
+        ConfigError,
+        r"--out: .* is a folder, not a file",
+    ),
+    Entry(
+        "cli-place-unknown-option",
+        "cli",
+        "`place --option` the method does not have",
+        _cli(
+            "probeplace.cli._checked_place_args", "place", "cornell_box", "--method", "grid", "-o", "bogus=1"
+        ),
+        ConfigError,
+        r"unknown grid options \['bogus'\]",
+    ),
+    Entry(
+        "cli-eval-width-zero",
+        "cli",
+        "`evaluate --width 0`",
+        _cli(*_EVAL, "--probes", "<dir>/p.json", "--out", "<dir>/ev", "--width", "0", files=_ONE_PROBE),
+        ConfigError,
+        r"--width: EvalConfig.width must be a positive int, got 0",
+    ),
+    Entry(
+        "cli-eval-spp-zero",
+        "cli",
+        "`evaluate --spp 0`",
+        _cli(*_EVAL, "--probes", "<dir>/p.json", "--out", "<dir>/ev", "--spp", "0", files=_ONE_PROBE),
+        ConfigError,
+        r"--spp: EvalConfig.spp must be a positive int, got 0",
+    ),
+    Entry(
+        "cli-eval-out-under-a-file",
+        "cli",
+        "`evaluate --out` under a path whose parent is a file",
+        _cli(*_EVAL, "--probes", "<dir>/p.json", "--out", "<dir>/f/ev", files={**_ONE_PROBE, "f": "x"}),
+        ConfigError,
+        r"--out: cannot create .*/f/ev: .*/f is a file, not a folder",
+    ),
+    Entry(
+        "cli-eval-empty-set",
+        "cli",
+        "`evaluate` of a probe set with no active probes",
+        _cli(
+            *_EVAL,
+            "--probes",
+            "<dir>/p.json",
+            "--out",
+            "<dir>/ev",
+            files={"p.json": _probe_doc([[1.0, 1.0, 1.0]], [False])},
+        ),
+        ConfigError,
+        r"--probes: .*p\.json holds no active probes",
+    ),
+    Entry(
+        "cli-text-npz",
+        "cli",
+        "a text file named .npz given as baked probes",
+        _cli(*_EVAL, "--probes", "<dir>/t.npz", "--out", "<dir>/ev", files={"t.npz": "hello\n"}),
+        ConfigError,
+        r"--probes: .*t\.npz is not a probeplace \.npz: not a NumPy archive",
+    ),
+    Entry(
+        "cli-export-empty-set",
+        "cli",
+        "`export` of a probe set with no probes",
+        _cli(
+            "probeplace.cli._export_input",
+            "export",
+            "<dir>/p.json",
+            "--format",
+            "json",
+            "--out",
+            "<dir>/o.json",
+            files={"p.json": _probe_doc([])},
+        ),
+        ProbeplaceError,
+        r"p\.json: the probe set has no active probes; nothing to export",
+    ),
+    Entry(
+        "runner-unknown-key",
+        "cli",
+        "runner override `+colour=red` (a key the schema lacks)",
+        _runner({"colour": "red"}),
+        ConfigError,
+        r"^colour: not a key of the config; known: \[",
+    ),
+    Entry(
+        "runner-results-dir-under-a-file",
+        "cli",
+        "runner `results_dir` under a path whose parent is a file",
+        lambda c: __import__("probeplace._core._checks", fromlist=["x"]).check_writable_folder(
+            c.write("f", "x") / "results" / "default", "results_dir"
+        ),
+        ConfigError,
+        r"results_dir: cannot create .*/f/results/default: .*/f is a file, not a folder",
+    ),
+    Entry(
+        "cli-eval-image-too-large",
+        "memory",
+        "`evaluate --width 100000000 --height 100000000`",
+        _cli(
+            *_EVAL,
+            "--probes",
+            "<dir>/p.json",
+            "--out",
+            "<dir>/ev",
+            "--width",
+            "100000000",
+            "--height",
+            "100000000",
+            files=_ONE_PROBE,
+        ),
+        ResourceError,
+        r"--width × --height: the reference render of 100000000×100000000 pixels × 64 spp needs",
+    ),
+    Entry(
+        "runner-image-too-large",
+        "memory",
+        "runner `eval.width=100000000 eval.height=100000000`",
+        _runner({"eval": {"width": 10**8, "height": 10**8}}),
+        ResourceError,
+        r"eval\.width × eval\.height: the reference render of 100000000×100000000 pixels",
+    ),
+    Entry(
+        "runner-bake-too-large",
+        "memory",
+        "runner `bake.radiance_res=65536`",
+        _runner({"bake": {"radiance_res": 65536}}),
+        ResourceError,
+        r"bake\.radiance_res=65536, .*one probe's bake needs",
     ),
 ]
 

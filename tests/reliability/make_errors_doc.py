@@ -27,6 +27,7 @@ STAGES = {
     "memory": "Sizes that would not fit in memory",
     "probes": "Probe sets",
     "config": "Configuration values",
+    "cli": "Command line and experiment runner",
 }
 
 HEAD = f"""# Errors and limits
@@ -74,7 +75,14 @@ NaN/inf vertices (OBJ and GLB), degenerate triangles (dropped and counted: *drop
 (zero-area) triangles of M*; all degenerate: an error), bad MTL numbers (file and line), negative
 emission, a glTF 1.0 document, an unknown scene name (the search path is listed). `tests/probes/test_bake.py`:
 bad `BakeConfig` values and NaN probe positions. `tests/placement`, `tests/export`, `tests/experiment`:
-their own options, files and formats.
+their own options, files and formats. `tests/test_cli_checks.py`, `tests/test_runner_cli.py`: every
+`place` / `evaluate` / `export` option and every runner key is checked before any placement, bake or
+render (a missing view, a size or sample count below 1, an image or bake too large for memory, an
+output that cannot be written, an empty probe set, a text file named `.npz`), each refused in one line
+`probeplace: error: ...`, exit status 2. Hydra's own errors in `experiments/run.py` — a misspelt key
+(`placer.budgett=3`), a wrong type (`seed=abc`), a missing option (`scene=nosuch`) — are composed
+before any run starts and printed the same way, in one line naming the key; an I/O error while
+writing is one line, exit 2; Ctrl-C is `probeplace: interrupted`, exit 130.
 """
 
 

@@ -276,3 +276,37 @@ def test_missing_llvm_variant_is_a_clear_error(monkeypatch):
     monkeypatch.setattr(mi, "variants", lambda: ["scalar_rgb"])
     with pytest.raises(ImportError, match="llvm_ad_rgb"):
         mb.load_mitsuba()
+
+
+def test_auto_backend_picks_mitsuba_on_a_cpu_and_jax_without_it(cornell, monkeypatch):
+    """``"auto"``: Mitsuba where its LLVM variant loads (this module runs only there) on a CPU, JAX when it
+    cannot load or when JAX runs on an accelerator; the settings records hold the resolved name."""
+    import probeplace.render._mitsuba_backend as mb
+    import probeplace.render._render as rr
+    from probeplace.evaluate import EvalConfig
+    from probeplace.probes._bake import _settings
+    from probeplace.render import BACKENDS, default_caster, resolve_backend
+
+    expected = "mitsuba" if jax.default_backend() == "cpu" else "jax"
+    assert resolve_backend("auto") == expected
+    assert RenderConfig(width=4, height=4, spp=1, backend="auto").backend == expected
+    assert EvalConfig(width=4, height=4, spp=1, backend="auto").backend == expected
+    # a caster is a JAX-only speed-up: with "auto" it is dropped when Mitsuba is picked, not refused
+    fn = path_traced_radiance(cornell, spp=2, max_depth=3, backend="auto", caster=default_caster(cornell))
+    assert fn.backend == expected and (fn.caster is None) == (expected == "mitsuba")
+    assert _settings(cornell, fn, 8, 1, jax.random.key(0)).backend == expected
+    for name in BACKENDS:  # a named backend is never replaced
+        assert resolve_backend(name) == name
+    with pytest.raises(ConfigError, match=r"EvalConfig.backend must be one of .*'auto'.*got 'fast'"):
+        EvalConfig(width=4, height=4, spp=1, backend="fast")
+
+    def no_llvm():
+        raise ImportError("no LLVM here")
+
+    rr._auto_backend.cache_clear()
+    monkeypatch.setattr(mb, "load_mitsuba", no_llvm)
+    monkeypatch.setattr(jax, "default_backend", lambda: "cpu")
+    try:
+        assert resolve_backend("auto") == "jax"
+    finally:
+        rr._auto_backend.cache_clear()

@@ -4,13 +4,17 @@ from __future__ import annotations
 
 import argparse
 import json
+import re
 from pathlib import Path
+
+import numpy as np
 
 from .._core import ConfigError
 
 
 def add_parser(sub) -> None:
     """Register the ``evaluate`` subcommand on an argparse subparsers object."""
+    from ..render import BACKEND_CHOICES
     from ..scene import add_scene_options
 
     e = sub.add_parser(
@@ -21,10 +25,15 @@ def add_parser(sub) -> None:
     add_scene_options(e)
     e.add_argument("--probes", required=True, help="ProbeSet .json (probeplace place) or baked .npz")
     e.add_argument("--view", default=None, help="camera name (default: the scene's first view)")
-    e.add_argument("--out", default="results/eval", help="output folder (default results/eval)")
-    e.add_argument("--shading", default="lightfield", choices=["lightfield", "irradiance", "sh"])
-    e.add_argument("--width", type=int, default=128)
-    e.add_argument("--height", type=int, default=128)
+    e.add_argument("--out", default="results/eval", help="output folder (metrics.json is written last)")
+    e.add_argument(
+        "--shading",
+        default="lightfield",
+        choices=["lightfield", "irradiance", "sh"],
+        help="diffuse shading from the probes",
+    )
+    e.add_argument("--width", type=int, default=128, help="image width, pixels")
+    e.add_argument("--height", type=int, default=128, help="image height, pixels")
     e.add_argument("--spp", type=int, default=64, help="reference paths per pixel")
     e.add_argument("--glossy-spp", type=int, default=8, help="GGX directions per pixel (CRN)")
     e.add_argument(
@@ -34,52 +43,117 @@ def add_parser(sub) -> None:
         help="camera path depth in segments; a bake from a ProbeSet traces max-depth − 1 "
         "(probes.bake_depth_for) and a baked .npz must have been baked so",
     )
-    e.add_argument("--hierarchy", default="hiz", choices=["hiz", "two_level", "flat"])
-    e.add_argument("--seed", type=int, default=0)
-    e.add_argument("--radiance-res", type=int, default=None, help="bake: radiance map resolution")
+    e.add_argument(
+        "--hierarchy",
+        default="hiz",
+        choices=["hiz", "two_level", "flat"],
+        help="light-field tracer's distance hierarchy",
+    )
+    e.add_argument("--seed", type=int, default=0, help="random seed of the bake and the renders")
+    e.add_argument(
+        "--radiance-res",
+        type=int,
+        default=None,
+        help="bake: radiance map resolution (default: from the scene)",
+    )
     e.add_argument("--bake-spp", type=int, default=16, help="bake: paths per texel ray")
     e.add_argument("--save-baked", default=None, help="bake: also save the baked probes to this .npz")
     e.add_argument(
-        "--geometry-res", type=int, default=None, help="bake: geometry (distance, normal) map resolution"
+        "--geometry-res",
+        type=int,
+        default=None,
+        help="bake: geometry (distance, normal) map resolution (default: --radiance-res)",
     )
     e.add_argument(
         "--backend",
         default="jax",
-        choices=["jax", "mitsuba"],
-        help="path tracer of the bake and the references (mitsuba: Dr.Jit LLVM on the CPU, faster; "
-        "default jax)",
+        choices=BACKEND_CHOICES,
+        help="path tracer of the bake and the references (mitsuba: Dr.Jit LLVM on the CPU, faster; auto: "
+        "mitsuba on a CPU where it loads, else jax)",
     )
     e.set_defaults(func=run)
 
 
-def _checked_inputs(args: argparse.Namespace):
-    """Every input checked before the scene is loaded and anything is baked or rendered: (path, config,
-    bake config or None, ProbeSet or None)."""
-    from .._core import load_probe_set
-    from ..probes import BakeConfig
+# EvalConfig / BakeConfig fields set from an option of the same name: their messages name the option.
+_OPTIONS = (
+    *("width", "height", "spp", "glossy_spp", "max_depth", "shading", "seed", "backend"),
+    *("radiance_res", "geometry_res"),
+)
+
+
+def _as_option(e: ConfigError) -> ConfigError:
+    """``EvalConfig.width must be ...`` as ``--width: EvalConfig.width must be ...`` (the option first)."""
+    m = re.match(r"(?:EvalConfig|BakeConfig)\.(\w+)", str(e))
+    if m is None or m.group(1) not in _OPTIONS:
+        return e
+    return ConfigError(f"--{m.group(1).replace('_', '-')}: {e}")
+
+
+def check_eval_memory(config, what: str) -> None:
+    """Refuse an evaluation whose reference render would not fit in memory, before anything is loaded
+    (the renderer's own estimate, ``_core._checks.check_image_memory``)."""
+    from .._core._checks import check_image_memory
+    from ..render import COMPONENTS, RenderConfig
+
+    check_image_memory(
+        config.width,
+        config.height,
+        config.spp,
+        components=len(COMPONENTS),
+        paths_per_batch=RenderConfig.paths_per_batch,
+        what=what,
+    )
+
+
+def _eval_config(args: argparse.Namespace):
+    """The evaluation settings of the options, checked (messages name the option) and sized."""
     from ..probes._trace import TraceConfig
     from . import EvalConfig
 
-    path = Path(args.probes)
-    if path.suffix not in (".json", ".npz"):
-        raise ConfigError(f"--probes must be a ProbeSet .json or a baked .npz, got {path}")
+    try:
+        config = EvalConfig(
+            width=args.width,
+            height=args.height,
+            spp=args.spp,
+            glossy_spp=args.glossy_spp,
+            max_depth=args.max_depth,
+            shading=args.shading,
+            trace=TraceConfig(hierarchy=args.hierarchy),
+            seed=args.seed,
+            progress=True,
+            backend=args.backend,
+        )
+    except ConfigError as e:
+        raise _as_option(e) from None
+    check_eval_memory(config, "--width × --height: the reference render")
+    return config
+
+
+def _checked_outputs(args: argparse.Namespace, path: Path) -> None:
+    """--save-baked and --out: the right kind of input, and writable, before any work."""
+    from .._core._checks import check_writable_file, check_writable_folder
+
     if args.save_baked is not None:
         if path.suffix != ".json":
             raise ConfigError(f"--save-baked saves a bake; {path} is already baked (give a ProbeSet .json)")
         if Path(args.save_baked).suffix != ".npz":
             raise ConfigError(f"--save-baked must name a .npz file, got {args.save_baked}")
-    config = EvalConfig(
-        width=args.width,
-        height=args.height,
-        spp=args.spp,
-        glossy_spp=args.glossy_spp,
-        max_depth=args.max_depth,
-        shading=args.shading,
-        trace=TraceConfig(hierarchy=args.hierarchy),
-        seed=args.seed,
-        progress=True,
-        backend=args.backend,
-    )
+        check_writable_file(args.save_baked, "--save-baked")
+    check_writable_folder(args.out, "--out")
+
+
+def _checked_inputs(args: argparse.Namespace):
+    """Every input checked before the scene is loaded and anything is baked or rendered: (path, config,
+    bake config or None, ProbeSet or baked probes)."""
+    from .._core import load_probe_set
+    from .._core._checks import check_npz_archive
+    from ..probes import BakeConfig, load_probes
+
+    path = Path(args.probes)
+    if path.suffix not in (".json", ".npz"):
+        raise ConfigError(f"--probes must be a ProbeSet .json or a baked .npz, got {path}")
+    _checked_outputs(args, path)
+    config = _eval_config(args)
     if args.backend == "mitsuba":  # refuse before loading anything if its LLVM variant cannot load
         from ..render._mitsuba_backend import load_mitsuba
 
@@ -88,11 +162,20 @@ def _checked_inputs(args: argparse.Namespace):
         except ImportError as e:
             raise ConfigError(f"--backend mitsuba: {e}") from None
     if path.suffix == ".npz":
-        return path, config, None, None
-    bake_cfg = BakeConfig(radiance_res=args.radiance_res, geometry_res=args.geometry_res, progress=True)
-    if isinstance(args.bake_spp, bool) or args.bake_spp < 1:
-        raise ConfigError(f"--bake-spp must be a positive integer, got {args.bake_spp}")
-    probes, _ = load_probe_set(path)
+        probes = load_probes(check_npz_archive(path, "--probes"))
+        bake_cfg = None
+    else:
+        try:
+            bake_cfg = BakeConfig(
+                radiance_res=args.radiance_res, geometry_res=args.geometry_res, progress=True
+            )
+        except ConfigError as e:
+            raise _as_option(e) from None
+        if isinstance(args.bake_spp, bool) or args.bake_spp < 1:
+            raise ConfigError(f"--bake-spp must be a positive integer, got {args.bake_spp}")
+        probes, _ = load_probe_set(path)
+    if not bool(np.asarray(probes.active).any()):
+        raise ConfigError(f"--probes: {path} holds no active probes; nothing to bake or evaluate")
     return path, config, bake_cfg, probes
 
 
@@ -104,7 +187,6 @@ def run(args: argparse.Namespace) -> int:
         bake_depth_for,
         bake_probes,
         check_bake_settings,
-        load_probes,
         path_traced_radiance,
         save_probes,
     )
@@ -122,7 +204,7 @@ def run(args: argparse.Namespace) -> int:
         raise ConfigError(f"--view: scene {scene.name!r} has no view {view!r}; views: {views}")
     caster = make_caster(scene, use="render")
     if path.suffix == ".npz":
-        lf = load_probes(path)
+        lf = probes
         check_bake_settings(lf, scene_name=scene.name, eval_max_depth=config.max_depth)
     else:
         lf = bake_probes(
@@ -142,6 +224,7 @@ def run(args: argparse.Namespace) -> int:
         if args.save_baked:
             save_probes(args.save_baked, lf)
     result = evaluate(scene, lf, view=view, config=config, caster=caster)
+    Path(args.out, "metrics.json").unlink(missing_ok=True)  # written last: present only when finished
     paths = write_evaluation(result, args.out)
     m = result.metrics
     keys = ("mse_glossy_indirect", "noise_floor_glossy_indirect", "mse_diffuse_indirect", "mse_full")

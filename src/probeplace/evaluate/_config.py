@@ -9,6 +9,7 @@ from .._core import ConfigError
 from ..probes._glossy import DEFAULT_GLOSSY_FILTER, GLOSSY_FILTERS
 from ..probes._shade import SHADINGS
 from ..probes._trace import TraceConfig
+from ._decompose import LEAK_SIGMAS
 
 
 @dataclasses.dataclass(frozen=True, kw_only=True)
@@ -39,12 +40,14 @@ class EvalConfig:
         relmse_eps: ε of the relative MSE, as a fraction of the squared mean reference luminance.
         seed: random seed (used when no key is given).
         normal_bias: Chebyshev receiver offset (× probe spacing), see ``probes.diffuse_irradiance``.
-        leak_threshold: relative luminance below which a reference pixel counts as unlit (light leak).
+        leak_sigmas: a pixel leaks light when the probes' diffuse indirect exceeds the reference's by more
+            than this many of the reference's own standard errors (``_decompose.light_leak``).
         timing_repeats: shading repeats timed (median) after the compile run.
         progress: progress bars for the reference render.
         backend: who path-traces the reference render and the CRN glossy reference: ``"jax"`` (default)
             or ``"mitsuba"`` (the same model and random numbers in Dr.Jit, several times faster on a CPU;
-            ``render.RenderConfig.backend``). The exact caster of the primary hits and the perfect trace
+            ``render.RenderConfig.backend``), or ``"auto"`` (replaced by ``render.resolve_backend``'s
+            pick). The exact caster of the primary hits and the perfect trace
             is the ``caster`` argument either way.
     """
 
@@ -64,7 +67,7 @@ class EvalConfig:
     relmse_eps: float = 0.01
     seed: int = 0
     normal_bias: float = 0.2
-    leak_threshold: float = 0.01
+    leak_sigmas: float = LEAK_SIGMAS
     timing_repeats: int = 3
     progress: bool = False
     backend: str = "jax"
@@ -78,10 +81,9 @@ class EvalConfig:
             raise ConfigError(f"EvalConfig.glossy_ref_spp must be an int ≥ 2, got {self.glossy_ref_spp!r}")
         if not isinstance(self.max_depth, int) or self.max_depth < 3:
             raise ConfigError(f"EvalConfig.max_depth must be an int ≥ 3, got {self.max_depth!r}")
-        from ..render import BACKENDS
+        from ..render import resolve_backend
 
-        if self.backend not in BACKENDS:
-            raise ConfigError(f"EvalConfig.backend must be one of {BACKENDS}, got {self.backend!r}")
+        object.__setattr__(self, "backend", resolve_backend(self.backend, "EvalConfig.backend"))
         if self.shading not in SHADINGS:
             raise ConfigError(f"EvalConfig.shading must be one of {SHADINGS}, got {self.shading!r}")
         if self.glossy_filter not in GLOSSY_FILTERS:
@@ -94,8 +96,10 @@ class EvalConfig:
             )
         if not isinstance(self.trace, TraceConfig):
             raise ConfigError(f"EvalConfig.trace must be a TraceConfig, got {type(self.trace).__name__}")
-        if not self.normal_bias >= 0 or not self.leak_threshold >= 0:
-            raise ConfigError("EvalConfig.normal_bias and leak_threshold must be ≥ 0")
+        if not self.normal_bias >= 0:
+            raise ConfigError(f"EvalConfig.normal_bias must be ≥ 0, got {self.normal_bias!r}")
+        if not self.leak_sigmas > 0:
+            raise ConfigError(f"EvalConfig.leak_sigmas must be > 0, got {self.leak_sigmas!r}")
         if not 0 <= self.perfect_trace_margin < 1 or not self.agreement_rtol >= 0 or not self.relmse_eps > 0:
             raise ConfigError(
                 "EvalConfig.perfect_trace_margin must be in [0, 1), agreement_rtol ≥ 0 and relmse_eps > 0"

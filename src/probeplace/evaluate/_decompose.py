@@ -25,6 +25,18 @@ luminance)²: the usual ε = 0.01 for an image scaled to mean luminance 1.
 **Confidence intervals.** Percentile bootstrap over pixels (Efron & Tibshirani 1993, ch. 13): the mean
 of the per-pixel squared error over ``n_resamples`` resamples of the pixels with replacement, from a
 fixed seed (deterministic); the interval between the (1 ± level)/2 quantiles.
+
+**Light leak against the reference's own noise** (:func:`light_leak`). A pixel leaks when the probe
+image is brighter than the reference by more than k standard errors of the reference pixel mean
+(k = :data:`LEAK_SIGMAS`), in luminance: p − r > k·σ_r. σ_r is bounded above by Σ_c a_c σ_c (the Rec. 709
+weights a_c and each channel's standard error σ_c = √Var[mean]; the sd of a weighted sum of correlated
+channels is at most the weighted sum of their sds), so the test errs towards not flagging. Only pixels
+whose standard error is *known* are judged: a pixel whose paths all returned the same value (typically
+all zero at 16 spp, where indirect light arrives through rare paths) has a sample variance of 0, which
+says nothing about its noise; judging it against 0 flagged ~30 % of the pixels for every method. With
+Gaussian pixel noise a perfect probe image is flagged on about 3·10⁻⁵ of the judged pixels at k = 4.
+Truly black regions (a sealed room) are never judged here: tests/evaluate/test_rooms_leak.py measures
+leaks there against an exact zero.
 """
 
 from __future__ import annotations
@@ -34,6 +46,8 @@ import numpy as np
 #: Tracer status codes (``probes.RAY_MISS`` / ``RAY_HIT`` / ``RAY_UNRESOLVED``) → names.
 STATUS_NAMES = {0: "miss", 1: "hit", 2: "unresolved"}
 _LUMA = np.array([0.2126, 0.7152, 0.0722])  # Rec. 709, as _core.luminance
+#: Standard errors of the reference by which a probe pixel must exceed it to count as leaked light.
+LEAK_SIGMAS = 4.0
 
 
 def pixel_means(v: np.ndarray, n_pixels: int, spp: int) -> np.ndarray:
@@ -135,3 +149,29 @@ def hit_agreement(
     tl = np.asarray(t_lf, np.float64)[hit]
     ok = np.isfinite(te) & (np.abs(tl - te) <= rtol * np.where(np.isfinite(te), te, 0.0) + atol)
     return float(np.mean(ok)), n
+
+
+def light_leak(
+    ref: np.ndarray, ref_var: np.ndarray, probe: np.ndarray, judge: np.ndarray, *, sigmas: float = LEAK_SIGMAS
+) -> dict:
+    """Pixels where the probe image exceeds the reference by more than ``sigmas`` of the reference's own
+    standard error (module docstring, "Light leak").
+
+    Args:
+        ref: (h, w, 3) reference pixel means.
+        ref_var: (h, w, 3) variance of those means (sample variance / spp).
+        probe: (h, w, 3) probe image.
+        judge: (h, w) bool, the pixels that may be judged (primary hits).
+        sigmas: k, the excess in standard errors that counts as a leak.
+
+    Returns:
+        ``flagged`` and ``judged`` (h, w) bool masks (judged: ``judge`` and a positive, finite standard
+        error), and ``energy``: Σ over flagged pixels of the excess luminance p − r, / number of pixels.
+    """
+    r = np.asarray(ref, np.float64) @ _LUMA
+    p = np.asarray(probe, np.float64) @ _LUMA
+    se = np.sqrt(np.maximum(np.asarray(ref_var, np.float64), 0.0)) @ _LUMA
+    judged = np.asarray(judge, bool) & np.isfinite(se) & (se > 0) & np.isfinite(r) & np.isfinite(p)
+    flagged = judged & (p - r > sigmas * np.where(judged, se, 0.0))
+    energy = float(np.sum(np.where(flagged, p - r, 0.0)) / max(flagged.size, 1))
+    return {"flagged": flagged, "judged": judged, "energy": energy}

@@ -3,8 +3,15 @@
 Reads only finished run folders (``DONE``): ``metrics.json``, ``config.yaml``, ``probes.json`` and
 ``eval/images.exr``. Writes ``<experiment dir>/report/`` atomically: ``report.md``, ``mse_vs_count.png``,
 ``mse_vs_time.png`` (placement + bake, and shading per frame, Pareto front marked), ``memory_vs_mse.png``,
-``error_images.png`` (one colour scale), ``top_views/<run>.png`` and, with several seeds or scene offsets,
-the stability tables.
+``error_images.png`` (one colour scale), ``top_views/<run>.png`` (a top and a side view of each probe
+set) and, with several seeds or scene offsets, the stability tables. The figures are built in
+``_report_charts``, the statistics and the words for metric keys live in ``_report_data``.
+
+Several runs of one method at one probe count (seeds, scene offsets) are one *cell*: charts draw its
+geometric mean with a 95 % Student-t interval in log space as an error bar, and the tables print the
+same numbers. Equal-count tables compare runs at exactly the same probe count (exact budgets); the
+equal-memory tables compare runs holding equal bytes of probe data (``metrics.memory.bytes_total``),
+else each method's run nearest to the grid's memory, with the bytes shown.
 
 Every time axis and the equal-time tables use run time *without JIT compilation*: ``place_bake_run_s``
 from ``metrics.json`` (``experiment._run``: the first run of a sweep pays the compilation the later ones
@@ -19,16 +26,43 @@ import json
 import math
 import os
 import shutil
-from collections import defaultdict
 from pathlib import Path
 
 import numpy as np
 
-from .._core import load_pyplot
+from ._report_charts import (
+    colours,
+    fig_errors,
+    fig_memory,
+    fig_mse_vs_count,
+    fig_mse_vs_time,
+    fig_probe_views,
+    fig_stability,
+    save_figure,
+)
+from ._report_data import (
+    POSES,
+    PRIMARY,
+    black_mse,
+    cells,
+    compile_s,
+    group,
+    leak_share,
+    log_t_interval,
+    memory,
+    mse,
+    n_unsplit,
+    pareto_front,
+    pose,
+    run_s,
+    seed_paired_ratio,
+    shade_s,
+    stage_run_s,
+    words,
+)
 from ._results import iter_runs
 
-PRIMARY = "mse_glossy_indirect"
-MSE_KEYS = ("mse_glossy_indirect", "mse_diffuse_indirect", "mse_full")
+__all__ = ["load_runs", "make_report", "pareto_front", "seed_paired_ratio"]
 
 
 def load_runs(exp_dir: str | os.PathLike) -> list[dict]:
@@ -41,90 +75,6 @@ def load_runs(exp_dir: str | os.PathLike) -> list[dict]:
     return runs
 
 
-def _mse(r: dict, key: str = PRIMARY) -> float | None:
-    v = (r.get("eval") or {}).get(key)
-    return float(v) if isinstance(v, int | float) and math.isfinite(v) else None
-
-
-def _black_mse(r: dict, key: str = PRIMARY) -> float | None:
-    """MSE of a black image (no indirect light) for ``mse_glossy_indirect`` / ``mse_diffuse_indirect``: the
-    evaluation's ``mse_black_*``, else the mean square of the saved reference image (older runs)."""
-    comp = key.removeprefix("mse_")
-    if comp not in ("glossy_indirect", "diffuse_indirect"):
-        return None
-    v = _mse(r, f"mse_black_{comp}")
-    if v is not None:
-        return v
-    exr = r["dir"] / "eval" / "images.exr"
-    if not exr.exists():
-        return None
-    from ..render._image_io import load_exr
-
-    ref = load_exr(exr).get(f"ref_{comp}")
-    return None if ref is None else float(np.mean(np.asarray(ref, np.float64) ** 2))
-
-
-def _run_s(r: dict) -> float | None:
-    """Placement + bake run time without JIT compilation (``timings.place_bake_run_s``); for runs written
-    before the compile/run split, their wall time ``place_bake_s`` (compilation included)."""
-    t = r.get("timings") or {}
-    v = t.get("place_bake_run_s", t.get("place_bake_s"))
-    return float(v) if isinstance(v, int | float) and not isinstance(v, bool) else None
-
-
-def _stage_run_s(r: dict, stage: str) -> float | None:
-    """``<stage>_run_s``, else (older runs) the wall time ``<stage>_s``."""
-    t = r.get("timings") or {}
-    v = t.get(f"{stage}_run_s", t.get(f"{stage}_s"))
-    return float(v) if isinstance(v, int | float) and not isinstance(v, bool) else None
-
-
-def _compile_s(r: dict) -> float | None:
-    """Placement + bake compile time; ``None`` for runs written before the split."""
-    t = r.get("timings") or {}
-    if "bake_compile_s" not in t and "place_compile_s" not in t:
-        return None
-    return float(t.get("place_compile_s", 0.0)) + float(t.get("bake_compile_s", 0.0))
-
-
-def _n_unsplit(runs: list[dict]) -> int:
-    """Runs whose metrics.json predates the compile/run split (times include compilation)."""
-    return sum("place_bake_run_s" not in (r.get("timings") or {}) for r in runs)
-
-
-def _unsplit_note(runs: list[dict]) -> list[str]:
-    n = _n_unsplit(runs)
-    if not n:
-        return []
-    return [
-        f"_{n} of {len(runs)} runs predate the compile/run split (no `place_bake_run_s` in their "
-        "metrics.json): their times are wall times, JIT compilation included._",
-        "",
-    ]
-
-
-def _shade_s(r: dict) -> float | None:
-    v = (r.get("eval") or {}).get("shading_s_per_frame")
-    return float(v) if isinstance(v, int | float) else None
-
-
-def _memory(r: dict) -> float | None:
-    """Bytes of the run's real probes as stored (``metrics.memory``, written by run())."""
-    m = r.get("memory") or {}
-    return float(m["bytes_total"]) if "bytes_total" in m else None
-
-
-def pareto_front(points: list) -> list[int]:
-    """Indices of the points not dominated in (x, y), both minimised; sorted by x."""
-    order = sorted(range(len(points)), key=lambda i: (points[i][0], points[i][1]))
-    front, best = [], math.inf
-    for i in order:
-        if points[i][1] < best:
-            front.append(i)
-            best = points[i][1]
-    return front
-
-
 def _labels(runs: list[dict]) -> list[str]:
     """Run labels: the reference baselines first (placement registry order), then alphabetical."""
     from ..placement import reference_methods
@@ -133,182 +83,12 @@ def _labels(runs: list[dict]) -> list[str]:
     return sorted({r["label"] for r in runs}, key=lambda s: (first.get(s, len(first)), s))
 
 
-def _colours(labels: list[str]) -> dict:
-    import matplotlib
-
-    cmap = matplotlib.colormaps["tab20"]
-    return {lab: cmap(i % 20) for i, lab in enumerate(labels)}
-
-
-def _chart_mse_vs_count(runs, labels, col, out: Path) -> Path | None:
-    have = [k for k in MSE_KEYS if any(_mse(r, k) is not None for r in runs)]
-    if not have:
-        return None
-    plt = load_pyplot()
-    fig, axes = plt.subplots(1, len(have), figsize=(5 * len(have), 4), constrained_layout=True, squeeze=False)
-    for ax, key in zip(axes[0], have, strict=True):
-        for lab in labels:
-            pts = sorted(
-                (r["n_probes"], _mse(r, key)) for r in runs if r["label"] == lab and _mse(r, key) is not None
-            )
-            if pts:
-                x, y = zip(*pts, strict=True)
-                ax.plot(x, y, "o-", color=col[lab], label=lab, ms=5)
-        floor = [v for r in runs if (v := (r.get("eval") or {}).get(key.replace("mse_", "noise_floor_")))]
-        if floor:
-            ax.axhline(float(np.median(floor)), ls="--", c="k", lw=0.8, label="reference noise floor")
-        black = [v for r in runs if (v := _black_mse(r, key)) is not None]
-        if black:
-            ax.axhline(float(np.median(black)), ls=":", c="r", lw=1.0, label="black image (no indirect)")
-        ax.set_xlabel("probes")
-        ax.set_ylabel(key)
-        ax.set_yscale("log")
-        ax.set_title(key.replace("mse_", "MSE ").replace("_", " "))
-    axes[0][0].legend(fontsize=7)
-    p = out / "mse_vs_count.png"
-    fig.savefig(p, dpi=110)
-    plt.close(fig)
-    return p
-
-
-def _chart_mse_vs_time(runs, labels, col, out: Path) -> Path | None:
-    rs = [r for r in runs if _mse(r) is not None]
-    if not rs:
-        return None
-    plt = load_pyplot()
-    old = _n_unsplit(rs)
-    name = "placement + bake run time, JIT compilation excluded (s)"
-    if old:
-        name += f"\n({old} older runs: wall time, compilation included)"
-    panels = [(name, _run_s)]
-    if any(_shade_s(r) is not None for r in rs):
-        panels.append(
-            (
-                "shading per frame, compilation excluded (ms)",
-                lambda r: None if _shade_s(r) is None else 1e3 * _shade_s(r),
-            )
-        )
-    fig, axes = plt.subplots(
-        1, len(panels), figsize=(5.5 * len(panels), 4.2), constrained_layout=True, squeeze=False
-    )
-    for ax, (name, fx) in zip(axes[0], panels, strict=True):
-        pts = [(fx(r), _mse(r), r["label"]) for r in rs if fx(r) is not None]
-        for lab in labels:
-            p = [(x, y) for x, y, lb in pts if lb == lab]
-            if p:
-                ax.scatter(*zip(*p, strict=True), color=col[lab], label=lab, s=30, zorder=3)
-        front = pareto_front([(x, y) for x, y, _ in pts])
-        fx_, fy_ = [pts[i][0] for i in front], [pts[i][1] for i in front]
-        ax.step(fx_, fy_, where="post", c="k", lw=1.0, zorder=2, label="Pareto front")
-        ax.scatter(fx_, fy_, facecolors="none", edgecolors="k", s=110, zorder=4)
-        ax.set_xlabel(name)
-        ax.set_ylabel(PRIMARY)
-        ax.set_yscale("log")
-    axes[0][0].legend(fontsize=7)
-    p = out / "mse_vs_time.png"
-    fig.savefig(p, dpi=110)
-    plt.close(fig)
-    return p
-
-
-def _chart_memory(runs, labels, col, out: Path) -> Path | None:
-    rs = [r for r in runs if _mse(r) is not None and _memory(r) is not None]
-    if not rs:
-        return None
-    plt = load_pyplot()
-    fig, ax = plt.subplots(figsize=(5.5, 4.2), constrained_layout=True)
-    for lab in labels:
-        p = [(_memory(r) / 1024, _mse(r)) for r in rs if r["label"] == lab]
-        if p:
-            ax.scatter(*zip(*p, strict=True), color=col[lab], label=lab, s=30)
-    ax.set_xlabel("probe memory (KiB)")
-    ax.set_ylabel(PRIMARY)
-    ax.set_yscale("log")
-    ax.legend(fontsize=7)
-    p = out / "memory_vs_mse.png"
-    fig.savefig(p, dpi=110)
-    plt.close(fig)
-    return p
-
-
-def _chart_errors(runs, out: Path, component: str = "glossy_indirect") -> Path | None:
-    from ..render._image_io import load_exr
-
-    imgs = []
-    for r in sorted(runs, key=lambda r: (r["label"], r["n_probes"], r["seed"])):
-        exr = r["dir"] / "eval" / "images.exr"
-        if exr.is_file():
-            layers = load_exr(exr)
-            if f"error_{component}" in layers:
-                title = f"{r['label']} · {r['n_probes']} probes · seed {r['seed']}"
-                imgs.append(
-                    (title, layers[f"error_{component}"].mean(axis=-1), layers.get(f"ref_{component}"))
-                )
-    if not imgs:
-        return None
-    plt = load_pyplot()
-    vmax = float(np.percentile(np.concatenate([e.ravel() for _, e, _ in imgs]), 99)) or 1.0
-    n = len(imgs)
-    cols = min(n, 4)
-    rows = math.ceil(n / cols)
-    fig, axes = plt.subplots(
-        rows, cols, figsize=(3.2 * cols, 3.2 * rows + 0.3), constrained_layout=True, squeeze=False
-    )
-    im = None
-    for ax, (name, err, _) in zip(axes.ravel(), imgs, strict=False):
-        im = ax.imshow(err, cmap="viridis", vmin=0, vmax=vmax)
-        ax.set_title(name, fontsize=8)
-    for ax in axes.ravel():
-        ax.set_axis_off()
-    fig.colorbar(
-        im, ax=axes.ravel().tolist(), shrink=0.7, label=f"|probe − reference| {component} (mean RGB)"
-    )
-    p = out / "error_images.png"
-    fig.savefig(p, dpi=100)
-    plt.close(fig)
-    return p
-
-
-def _top_views(runs, out: Path) -> list[Path]:
-    """Redraw each layout over its scene (``placement.save_top_view``) from probes.json + config.yaml."""
-    from .._core import load_probe_set
-    from ..placement import save_top_view
-    from ._run import load_experiment_scene
-    from ._schema import load_config_yaml, to_config
-
-    paths, scenes = [], {}
-    for r in runs:
-        cfg = to_config(load_config_yaml(r["dir"] / "config.yaml"))
-        key = (cfg.scene.name, tuple(cfg.scene.translate_frac), cfg.scene.rotate_deg)
-        if key not in scenes:
-            scenes[key] = load_experiment_scene(cfg.scene)
-        probes, _ = load_probe_set(r["dir"] / "probes.json")
-        pos = np.asarray(probes.pos_world)[np.asarray(probes.active)]
-        paths.append(
-            save_top_view(
-                scenes[key],
-                pos,
-                out / "top_views" / f"{r['run']}.png",
-                title=f"{r['label']}: {len(pos)} probes",
-            )
-        )
-    return paths
-
-
 def _fmt(v, spec=".3g") -> str:
     if v is None:
         return "—"
     if isinstance(v, float) and not math.isfinite(v):
         return "—"
     return format(v, spec) if isinstance(v, int | float) and not isinstance(v, bool) else str(v)
-
-
-def _group(runs: list[dict]) -> dict:
-    """(scene, label) → runs."""
-    g = defaultdict(list)
-    for r in runs:
-        g[(r["scene"], r["label"])].append(r)
-    return g
 
 
 def _interp_log(x0: float, pts: list) -> float | None:
@@ -323,42 +103,76 @@ def _interp_log(x0: float, pts: list) -> float | None:
     return float(np.exp(np.interp(lx, xs, ys)))
 
 
+def _unsplit_note(runs: list[dict]) -> list[str]:
+    """A line saying how many runs' times include JIT compilation (written before the split)."""
+    n = n_unsplit(runs)
+    if not n:
+        return []
+    return [
+        f"_{n} of {len(runs)} runs predate the compile/run split (no `place_bake_run_s` in their "
+        "metrics.json): their times are wall times, JIT compilation included._",
+        "",
+    ]
+
+
+def _ci(q: tuple | None, spec: str = ".3g") -> str:
+    """``mean [lo, hi]`` of a (mean, lo, hi) triple; ``mean`` alone when the interval is unknown."""
+    if q is None:
+        return "—"
+    if not (math.isfinite(q[1]) and math.isfinite(q[2])):
+        return format(q[0], spec)
+    return f"{q[0]:{spec}} [{q[1]:{spec}}, {q[2]:{spec}}]"
+
+
+def _leak(r: dict) -> str:
+    """Light-leak pixels and their share of the judged pixels (``eval.light_leak_*``)."""
+    e = r.get("eval") or {}
+    share = leak_share(r)
+    if share is None:
+        return "—"
+    return f"{e['light_leak_pixels']} ({share:.2%})"
+
+
 def _all_runs_table(runs: list[dict], labels: list[str]) -> list[str]:
     """The "All runs" section: one row per run with its times, errors, memory and failures."""
-    md = []
-    md += ["## All runs", ""]
+    md = ["## All runs", ""]
     md += [
         "Place s and bake s are run times without JIT compilation; compile s is what placement and bake "
         "spent compiling (the first run of a process pays it for every later run of the same shapes); "
-        "shading ms/frame excludes its compile run.",
+        "shading ms/frame excludes its compile run. Light leak: pixels where the probes' diffuse "
+        "indirect exceeds the reference by more than 4 of the reference's own standard errors, and their "
+        "share of the pixels whose standard error is known (docs/evaluate.md).",
         "",
         *_unsplit_note(runs),
     ]
     md += [
-        "| run | probes | coverage | place s | bake s | compile s | MSE glossy ind. | MSE diffuse ind. "
-        "| MSE full | noise floor glossy | shading ms/frame | memory KiB | unresolved | failures |",
-        "|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---|",
+        f"| run | probes | coverage | place s | bake s | compile s | {words(PRIMARY)} "
+        f"| {words('mse_diffuse_indirect')} | {words('mse_full')} | {words('noise_floor_glossy_indirect')} "
+        "| shading ms/frame | memory KiB | unresolved | light leak px (share) | failures |",
+        "|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---|",
     ]
     for r in sorted(runs, key=lambda r: (r["scene"], labels.index(r["label"]), r["n_probes"], r["seed"])):
         e = r.get("eval") or {}
-        mem = _memory(r)
+        mem = memory(r)
         md.append(
             f"| {r['run']} | {r['n_probes']} | {_fmt(r.get('coverage'), '.4f')} "
-            f"| {_fmt(_stage_run_s(r, 'place'), '.1f')} | {_fmt(_stage_run_s(r, 'bake'), '.1f')} "
-            f"| {_fmt(_compile_s(r), '.1f')} | {_fmt(_mse(r))} | {_fmt(_mse(r, 'mse_diffuse_indirect'))} "
-            f"| {_fmt(_mse(r, 'mse_full'))} | {_fmt(e.get('noise_floor_glossy_indirect'))} "
-            f"| {_fmt(None if _shade_s(r) is None else 1e3 * _shade_s(r), '.2f')} "
+            f"| {_fmt(stage_run_s(r, 'place'), '.1f')} | {_fmt(stage_run_s(r, 'bake'), '.1f')} "
+            f"| {_fmt(compile_s(r), '.1f')} | {_fmt(mse(r))} | {_fmt(mse(r, 'mse_diffuse_indirect'))} "
+            f"| {_fmt(mse(r, 'mse_full'))} | {_fmt(e.get('noise_floor_glossy_indirect'))} "
+            f"| {_fmt(None if shade_s(r) is None else 1e3 * shade_s(r), '.2f')} "
             f"| {_fmt(None if mem is None else mem / 1024, '.1f')} "
-            f"| {_fmt(e.get('unresolved_share'), '.4f')} "
+            f"| {_fmt(e.get('unresolved_share'), '.4f')} | {_leak(r)} "
             f"| {', '.join(r.get('failures', [])) or 'none'} |"
         )
     return md
 
 
-def _equal_count_table(rs, by, labels, scene, g_count: float, g_mse: float) -> list[str]:
-    """Each method's MSE at the grid's probe count (log-log interpolated, else its nearest count)."""
-    md = ["", f"## {scene}: equal probe count ({g_count:g} probes, the grid's count)", ""]
-    black = [v for r in rs if (v := _black_mse(r)) is not None]
+def _equal_count_table(rs, labels, scene, g_count: int, g_mse: float) -> list[str]:
+    """Each method's MSE at exactly the grid's probe count (geometric mean over its runs there, 95 %
+    t-interval); a method with no run at that count: log-log interpolated between its counts, else its
+    nearest count, and the row says so."""
+    md = ["", f"## {scene}: equal probe count ({g_count} probes, the grid's count)", ""]
+    black = [v for r in rs if (v := black_mse(r)) is not None]
     if black:
         b = float(np.median(black))
         md += [
@@ -366,33 +180,70 @@ def _equal_count_table(rs, by, labels, scene, g_count: float, g_mse: float) -> l
             "above it adds more wrong light than it recovers.",
             "",
         ]
-    md += ["| method | MSE glossy ind. at that count | ÷ grid | how |", "|---|---:|---:|---|"]
+    md += [
+        f"| method | {words(PRIMARY)} at that count [95 % t-interval over runs] | ÷ grid | how |",
+        "|---|---:|---:|---|",
+    ]
+    by = cells(rs, lambda r: r["n_probes"], mse)
     for lab in labels:
-        pts = [(r["n_probes"], _mse(r)) for r in by.get((scene, lab), [])]
-        if not pts:
+        cell = by.get(lab)
+        if not cell:
             continue
-        v, how = _interp_log(g_count, pts), "interpolated (log-log)"
-        if v is None:
-            near = min(pts, key=lambda p: abs(math.log(p[0] / g_count)))
-            v, how = near[1], f"nearest count measured: {near[0]}"
-        md.append(f"| {lab} | {_fmt(v)} | {_fmt(v / g_mse, '.2f')} | {how} |")
+        exact = [c for c in cell if c[0] == g_count]
+        if exact:
+            q, how = exact[0][1:4], f"measured at exactly {g_count} ({exact[0][4]} runs)"
+        else:
+            v, how = _interp_log(float(g_count), [(c[0], c[1]) for c in cell]), "interpolated (log-log)"
+            if v is None:
+                near = min(cell, key=lambda c: abs(math.log(c[0] / g_count)))
+                v, how = near[1], f"nearest count measured: {near[0]}"
+            q = (v, math.nan, math.nan)
+        md.append(f"| {lab} | {_ci(q)} | {_fmt(q[0] / g_mse, '.2f')} | {how} |")
     return md
 
 
-def seed_paired_ratio(pairs: list[tuple[float, float]]) -> tuple[float, float, float] | None:
-    """Geometric mean of ``method ÷ grid`` over seeds (each pair: one seed's two MSEs) with a 95 %
-    Student-t interval in log space — the seed-to-seed spread of placement, bake and reference noise
-    together. ``(ratio, lo, hi)``; the interval is (nan, nan) with one seed (it cannot be estimated)."""
-    logs = np.log([m / g for m, g in pairs if m > 0 and g > 0])
-    if not len(logs):
-        return None
-    mean = float(logs.mean())
-    if len(logs) < 2:
-        return math.exp(mean), math.nan, math.nan
-    from scipy import stats
+def _memory_tiers(rs: list[dict]) -> tuple[list[float], bool]:
+    """The memories (bytes) to compare at: every exact memory that two or more methods share (``True``),
+    else the grid's median memory (or all runs' median without a grid) — compared at nearest (``False``)."""
+    by_bytes: dict[float, set] = {}
+    for r in rs:
+        if (b := memory(r)) is not None:
+            by_bytes.setdefault(b, set()).add(r["label"])
+    shared = sorted(b for b, labs in by_bytes.items() if len(labs) > 1)
+    if shared:
+        return shared, True
+    ref = [memory(r) for r in rs if r["label"] == "grid" and memory(r) is not None] or list(by_bytes)
+    return ([float(np.median(ref))] if ref else []), False
 
-    half = float(stats.t.ppf(0.975, len(logs) - 1) * logs.std(ddof=1) / math.sqrt(len(logs)))
-    return math.exp(mean), math.exp(mean - half), math.exp(mean + half)
+
+def _equal_memory_table(rs, labels, scene) -> list[str]:
+    """Each method at equal bytes of probe data: runs with exactly that memory (geometric mean over them,
+    95 % t-interval), or — when no two methods share a memory — each method's runs nearest to the grid's
+    memory in log space, with their bytes shown."""
+    tiers, exact = _memory_tiers(rs)
+    md = []
+    for target in tiers:
+        kib = target / 1024
+        md += ["", f"## {scene}: equal memory ({kib:.1f} KiB of probe data)", ""]
+        if not exact:
+            md += ["_No two methods hold the same bytes: each method's runs nearest to this memory._", ""]
+        md += [
+            f"| method | memory KiB | probes | runs | {words(PRIMARY)} [95 % t-interval over runs] | how |",
+            "|---|---:|---|---:|---:|---|",
+        ]
+        for lab in labels:
+            mine = [r for r in rs if r["label"] == lab and memory(r) is not None]
+            if not mine:
+                continue
+            near = min({memory(r) for r in mine}, key=lambda b: (abs(math.log(b / target)), b))
+            if exact and near != target:
+                continue
+            at = [r for r in mine if memory(r) == near]
+            q = log_t_interval([v for r in at if (v := mse(r)) is not None])
+            counts = ", ".join(map(str, sorted({r["n_probes"] for r in at})))
+            how = "equal memory" if near == target else f"nearest memory measured ({near / target - 1:+.0%})"
+            md.append(f"| {lab} | {near / 1024:.1f} | {counts} | {len(at)} | {_ci(q)} | {how} |")
+    return md
 
 
 def _paired_table(rs, labels, scene, count: int) -> list[str]:
@@ -414,13 +265,12 @@ def _paired_table(rs, labels, scene, count: int) -> list[str]:
         runs = [r for r in at if r["label"] == lab and r["seed"] in grid]
         if not runs:
             continue
-        cells = []
+        ratios = []
         for key in (PRIMARY, "mse_diffuse_indirect"):
-            pairs = [(v, w) for r in runs if (v := _mse(r, key)) and (w := _mse(grid[r["seed"]], key))]
-            q = seed_paired_ratio(pairs)
-            cells.append("—" if q is None else f"{q[0]:.2f} [{q[1]:.2f}, {q[2]:.2f}]")
+            pairs = [(v, w) for r in runs if (v := mse(r, key)) and (w := mse(grid[r["seed"]], key))]
+            ratios.append(_ci(seed_paired_ratio(pairs), ".2f"))
         usable = sorted((r.get("eval") or {}).get("n_probes_usable", r["n_probes"]) for r in runs)
-        md.append(f"| {lab} | {len(runs)} | {cells[0]} | {cells[1]} | {', '.join(map(str, usable))} |")
+        md.append(f"| {lab} | {len(runs)} | {ratios[0]} | {ratios[1]} | {', '.join(map(str, usable))} |")
     return md
 
 
@@ -435,14 +285,14 @@ def _equal_time_table(rs, by, labels, scene, g_time: float, g_mse: float) -> lis
         "",
         *_unsplit_note(rs),
     ]
-    md += ["| method | best MSE glossy ind. within the time | probes | ÷ grid |", "|---|---:|---:|---:|"]
+    md += [f"| method | best {words(PRIMARY)} within the time | probes | ÷ grid |", "|---|---:|---:|---:|"]
     for lab in labels:
-        ok = [r for r in by.get((scene, lab), []) if (v := _run_s(r)) is not None and v <= g_time]
+        ok = [r for r in by.get((scene, lab), []) if (v := run_s(r)) is not None and v <= g_time]
         if ok:
-            b = min(ok, key=_mse)
-            md.append(f"| {lab} | {_fmt(_mse(b))} | {b['n_probes']} | {_fmt(_mse(b) / g_mse, '.2f')} |")
+            b = min(ok, key=mse)
+            md.append(f"| {lab} | {_fmt(mse(b))} | {b['n_probes']} | {_fmt(mse(b) / g_mse, '.2f')} |")
         else:
-            times = [v for r in by.get((scene, lab), []) if (v := _run_s(r)) is not None]
+            times = [v for r in by.get((scene, lab), []) if (v := run_s(r)) is not None]
             fastest = min(times, default=math.nan)
             md.append(f"| {lab} | — (fastest run {fastest:.1f} s) | — | — |")
     return md
@@ -450,44 +300,54 @@ def _equal_time_table(rs, by, labels, scene, g_time: float, g_mse: float) -> lis
 
 def _equal_quality_table(by, labels, scene, g_mse: float) -> list[str]:
     """Each method's fewest probes reaching the grid's MSE, with that run's time."""
-    md = ["", f"## {scene}: equal quality (MSE glossy ind. ≤ {g_mse:.3g}, the grid's)", ""]
+    md = ["", f"## {scene}: equal quality ({words(PRIMARY)} ≤ {g_mse:.3g}, the grid's)", ""]
     md += [
         "| method | fewest probes reaching it | its placement + bake run s (no compilation) |",
         "|---|---:|---:|",
     ]
     for lab in labels:
-        ok = [r for r in by.get((scene, lab), []) if _mse(r) <= g_mse * (1 + 1e-9)]
+        ok = [r for r in by.get((scene, lab), []) if mse(r) <= g_mse * (1 + 1e-9)]
         if ok:
             b = min(ok, key=lambda r: r["n_probes"])
-            md.append(f"| {lab} | {b['n_probes']} | {_fmt(_run_s(b), '.1f')} |")
+            md.append(f"| {lab} | {b['n_probes']} | {_fmt(run_s(b), '.1f')} |")
         else:
             md.append(f"| {lab} | not reached in these runs | — |")
     return md
 
 
+def _grid_count(grid: list[dict]) -> int:
+    """The grid's probe count the equal-count table compares at: its measured count nearest (log) to the
+    median of its counts (a count it really ran, so equal counts are exact)."""
+    counts = sorted({r["n_probes"] for r in grid})
+    med = float(np.median([r["n_probes"] for r in grid]))
+    return min(counts, key=lambda c: (abs(math.log(c / med)), c))
+
+
 def _scene_tables(runs: list[dict], labels: list[str], scene: str) -> list[str]:
-    """One scene's equal-count, equal-time and equal-quality tables, all measured against the grid's runs."""
-    rs = [r for r in runs if r["scene"] == scene and _mse(r) is not None]
+    """One scene's equal-count, equal-memory, equal-time and equal-quality tables (all but equal memory
+    measured against the grid's runs)."""
+    rs = [r for r in runs if r["scene"] == scene and mse(r) is not None]
     grid = [r for r in rs if r["label"] == "grid"]
+    memory_md = _equal_memory_table(rs, labels, scene)
     if not rs or not grid:
         return [
             "",
             f"_{scene}: equal-count / time / quality tables need evaluated runs including `grid`._",
+            *memory_md,
         ]
-    g_count = float(np.median([r["n_probes"] for r in grid]))
-    g_times = [v for r in grid if (v := _run_s(r)) is not None]
+    g_count = _grid_count(grid)
+    g_times = [v for r in grid if (v := run_s(r)) is not None]
     g_time = float(np.median(g_times)) if g_times else math.nan
-    g_mse = _interp_log(g_count, [(r["n_probes"], _mse(r)) for r in grid]) or float(
-        np.median([_mse(r) for r in grid])
-    )
-    by = _group(rs)
+    g_mse = log_t_interval([mse(r) for r in grid if r["n_probes"] == g_count])[0]
+    by = group(rs)
     paired = []
     for count in sorted({r["n_probes"] for r in grid}):  # exact budgets: every method at the grid's count
         if len({r["label"] for r in rs if r["n_probes"] == count}) > 1:
             paired += _paired_table(rs, labels, scene, count)
     return (
         paired
-        + _equal_count_table(rs, by, labels, scene, g_count, g_mse)
+        + _equal_count_table(rs, labels, scene, g_count, g_mse)
+        + memory_md
         + _equal_time_table(rs, by, labels, scene, g_time, g_mse)
         + _equal_quality_table(by, labels, scene, g_mse)
     )
@@ -501,26 +361,15 @@ def _tables(runs: list[dict], labels: list[str]) -> list[str]:
     return md
 
 
-def _pose(r: dict) -> str:
-    """How the run's scene was perturbed against the grid: base, translated, rotated, or both."""
-    moved = any(float(x) != 0.0 for x in r.get("translate_frac") or ())
-    turned = float(r.get("rotate_deg") or 0.0) != 0.0
-    return {(False, False): "base", (True, False): "translated", (False, True): "rotated"}.get(
-        (moved, turned), "translated+rotated"
-    )
-
-
-POSES = ("base", "translated", "rotated", "translated+rotated")
-
-
 def _stability(runs: list[dict], labels: list[str]) -> list[str]:
-    g = _group(runs)
+    """Spread of each (scene, method) over its seeds and scene offsets, then split by pose."""
+    g = group(runs)
     if all(len(v) < 2 for v in g.values()):
         return []
     md = ["## Stability (spread over seeds and scene offsets)", ""]
     md += [
         "| scene | method | runs | failure rate | probes mean ± sd | coverage min "
-        "| MSE glossy mean ± sd | failures |",
+        f"| {words(PRIMARY)} [95 % t-interval] | failures |",
         "|---|---|---:|---:|---:|---:|---:|---|",
     ]
     for (scene, lab), rs in sorted(g.items(), key=lambda kv: (kv[0][0], labels.index(kv[0][1]))):
@@ -528,14 +377,13 @@ def _stability(runs: list[dict], labels: list[str]) -> list[str]:
         cov = [r["coverage"] for r in rs if r.get("coverage") is not None]
         fails = [f for r in rs for f in r.get("failures", [])]
         rate = sum(bool(r.get("failures")) for r in rs) / len(rs)
-        mses = np.array([v for r in rs if (v := _mse(r)) is not None])
-        mse_s = f"{mses.mean():.3g} ± {mses.std():.2g}" if len(mses) else "—"
+        mse_s = _ci(log_t_interval([v for r in rs if (v := mse(r)) is not None]))
         counts = ", ".join(f"{k} ×{fails.count(k)}" for k in sorted(set(fails))) or "none"
         md.append(
             f"| {scene} | {lab} | {len(rs)} | {rate:.0%} | {n.mean():.1f} ± {n.std():.1f} "
             f"| {_fmt(min(cov) if cov else None, '.4f')} | {mse_s} | {counts} |"
         )
-    if len({_pose(r) for r in runs}) > 1:
+    if len({pose(r) for r in runs}) > 1:
         md += ["", "### By perturbation of the scene against the grid", ""]
         md += [
             "| scene | method | pose | runs | failure rate | coverage mean (min – max) "
@@ -543,8 +391,8 @@ def _stability(runs: list[dict], labels: list[str]) -> list[str]:
             "|---|---|---|---:|---:|---|---|",
         ]
         for (scene, lab), rs in sorted(g.items(), key=lambda kv: (kv[0][0], labels.index(kv[0][1]))):
-            for pose in POSES:
-                ps = [r for r in rs if _pose(r) == pose]
+            for p_name in POSES:
+                ps = [r for r in rs if pose(r) == p_name]
                 if not ps:
                     continue
                 cov = np.array([r["coverage"] for r in ps if r.get("coverage") is not None])
@@ -552,50 +400,72 @@ def _stability(runs: list[dict], labels: list[str]) -> list[str]:
                 rate = sum(bool(r.get("failures")) for r in ps) / len(ps)
                 cov_s = f"{cov.mean():.4f} ({cov.min():.4f} – {cov.max():.4f})" if len(cov) else "—"
                 md.append(
-                    f"| {scene} | {lab} | {pose} | {len(ps)} | {rate:.0%} | {cov_s} | {min(n)} – {max(n)} |"
+                    f"| {scene} | {lab} | {p_name} | {len(ps)} | {rate:.0%} | {cov_s} | {min(n)} – {max(n)} |"
                 )
     return md
 
 
-def _chart_stability(runs, labels, col, out: Path) -> Path | None:
-    """Uncovered surface share of every run, per scene and method, marker by pose (seeds jittered apart)."""
-    rs = [r for r in runs if r.get("coverage") is not None]
-    g = _group(rs)
-    if all(len(v) < 2 for v in g.values()):
-        return None
-    plt = load_pyplot()
-    scenes = sorted({r["scene"] for r in rs})
-    fig, axes = plt.subplots(
-        1, len(scenes), figsize=(4.5 * len(scenes), 4), constrained_layout=True, squeeze=False
-    )
-    marks = dict(zip(POSES, "os^D", strict=True))
-    rng = np.random.default_rng(0)
-    floor = 1e-4
-    for ax, scene in zip(axes[0], scenes, strict=True):
-        labs = [lab for lab in labels if (scene, lab) in g]
-        for i, lab in enumerate(labs):
-            for pose in POSES:
-                ps = [r for r in g[(scene, lab)] if _pose(r) == pose]
-                if ps:
-                    y = [max(1.0 - r["coverage"], floor) for r in ps]
-                    x = i + POSES.index(pose) * 0.18 - 0.27 + rng.uniform(-0.05, 0.05, len(y))
-                    ax.scatter(x, y, marker=marks[pose], color=col[lab], s=22, edgecolors="k", lw=0.4)
-        ax.set_yscale("log")
-        ax.axhline(floor, c="g", lw=0.8, ls="--")
-        ax.set_xticks(range(len(labs)), labs, rotation=30, ha="right", fontsize=8)
-        ax.set_ylabel("uncovered share of the surface")
-        ax.text(len(labs) - 0.5, floor * 1.15, "full coverage", ha="right", va="bottom", fontsize=7, c="g")
-        ax.set_title(scene)
-    handles = [
-        plt.Line2D([], [], marker=marks[p], ls="", color="grey", markeredgecolor="k", label=p)
-        for p in POSES
-        if any(_pose(r) == p for r in rs)
+def _top_views(runs: list[dict], out: Path) -> list[Path]:
+    """``top_views/<run>.png`` per run (the folder keeps its earlier name): its probes (``probes.json``)
+    in a top and a side view over its scene (``config.yaml``), so probes stacked in height, one dot from
+    above, stand apart from the side."""
+    from .._core import load_probe_set
+    from ._run import load_experiment_scene
+    from ._schema import load_config_yaml, to_config
+
+    paths, tris = [], {}
+    for r in runs:
+        cfg = to_config(load_config_yaml(r["dir"] / "config.yaml"))
+        key = (cfg.scene.name, tuple(cfg.scene.translate_frac), cfg.scene.rotate_deg)
+        if key not in tris:
+            scene = load_experiment_scene(cfg.scene)
+            tris[key] = np.asarray(scene.vertices)[np.asarray(scene.faces)]
+        probes, _ = load_probe_set(r["dir"] / "probes.json")
+        pos = np.asarray(probes.pos_world)[np.asarray(probes.active)]
+        fig = fig_probe_views(tris[key], pos, f"{r['label']}: {len(pos)} probes · seed {r['seed']}")
+        paths.append(save_figure(fig, out / "top_views" / f"{r['run']}.png", dpi=80))
+    return paths
+
+
+CHARTS = (  # (file stem, section title)
+    ("mse_vs_count", "MSE vs probe count (seeds: geometric mean, 95 % t-interval)"),
+    ("mse_vs_time", "MSE vs time (run time without JIT compilation; Pareto front marked)"),
+    ("memory_vs_mse", "Memory vs MSE"),
+    ("error_images", "Error images (one scale)"),
+)
+
+
+def _report_md(exp: Path, runs: list[dict], out: Path) -> list[str]:
+    """Draw every figure into ``out`` and return the report's Markdown lines."""
+    labels = _labels(runs)
+    col = colours(labels)
+    figs = [
+        fig_mse_vs_count(runs, labels, col),
+        fig_mse_vs_time(runs, labels, col),
+        fig_memory(runs, labels, col),
+        fig_errors(runs),
     ]
-    axes[0][0].legend(handles=handles, fontsize=7)
-    p = out / "stability.png"
-    fig.savefig(p, dpi=110)
-    plt.close(fig)
-    return p
+    md = [
+        f"# {exp.name}",
+        "",
+        f"{len(runs)} finished runs in `{exp}`; every figure below is redrawn from them.",
+        "",
+    ]
+    for (stem, title), fig in zip(CHARTS, figs, strict=True):
+        if fig is None:
+            md += [f"## {title}", "", "_no evaluated runs: nothing to draw_", ""]
+            continue
+        save_figure(fig, out / f"{stem}.png", dpi=100 if stem == "error_images" else 110)
+        md += [f"## {title}", "", f"![{title}]({stem}.png)", ""]
+    views = _top_views(runs, out)
+    md += ["## Probe layouts (top and side views)", ""]
+    md += [" ".join(f"![{p.stem}](top_views/{p.name})" for p in views), ""]
+    md += _tables(runs, labels)
+    md += ["", *_stability(runs, labels)]
+    if (stab := fig_stability(runs, labels, col)) is not None:
+        save_figure(stab, out / "stability.png")
+        md += ["", "![Uncovered surface per run](stability.png)", ""]
+    return md
 
 
 def make_report(exp_dir: str | os.PathLike) -> Path:
@@ -615,36 +485,7 @@ def make_report(exp_dir: str | os.PathLike) -> Path:
     shutil.rmtree(partial, ignore_errors=True)
     partial.mkdir(parents=True)
     try:
-        labels = _labels(runs)
-        col = _colours(labels)
-        charts = [
-            _chart_mse_vs_count(runs, labels, col, partial),
-            _chart_mse_vs_time(runs, labels, col, partial),
-            _chart_memory(runs, labels, col, partial),
-            _chart_errors(runs, partial),
-        ]
-        tops = _top_views(runs, partial)
-        name = exp.name
-        md = [
-            f"# {name}",
-            "",
-            f"{len(runs)} finished runs in `{exp}`; every figure below is redrawn from them.",
-            "",
-        ]
-        titles = [
-            "MSE vs probe count",
-            "MSE vs time (run time without JIT compilation; Pareto front marked)",
-            "Memory vs MSE",
-            "Error images (one scale)",
-        ]
-        for t, c in zip(titles, charts, strict=True):
-            md += [f"## {t}", "", f"![{t}]({c.name})" if c else "_no evaluated runs: nothing to draw_", ""]
-        md += ["## Probe layouts (top view)", ""]
-        md += [" ".join(f"![{p.stem}](top_views/{p.name})" for p in tops), ""]
-        md += _tables(runs, labels)
-        md += ["", *_stability(runs, labels)]
-        if stab := _chart_stability(runs, labels, col, partial):
-            md += ["", f"![Uncovered surface per run]({stab.name})", ""]
+        md = _report_md(exp, runs, partial)
         (partial / "report.md").write_text("\n".join(md) + "\n")
     except BaseException:
         shutil.rmtree(partial, ignore_errors=True)

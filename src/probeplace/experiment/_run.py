@@ -290,7 +290,9 @@ def run(cfg: Any, *, force: bool = False) -> RunResult:
 def _execute(cfg: ExperimentConfig, partial: Path, final: Path) -> dict:
     """Every stage of :func:`run`, writing into ``partial``; returns the metrics."""
     import jax
-    from tqdm.auto import tqdm
+
+    from .._core._progress import progress_bar
+    from ..render import resolve_backend
 
     (partial / "config.yaml").write_text(config_to_yaml(cfg))
     _results.write_json(partial / "env.json", _results.environment())
@@ -299,7 +301,9 @@ def _execute(cfg: ExperimentConfig, partial: Path, final: Path) -> dict:
     metrics = _run_record(cfg, final, timings)
     stages = ["scene", "place"] + ["bake"] * cfg.bake.enabled + ["eval"] * cfg.eval.enabled
     stages += ["export"] * bool(cfg.export.formats)
-    bar = tqdm(total=len(stages), desc=final.name, unit="stage", disable=not cfg.progress, leave=False)
+    bar = progress_bar(
+        total=len(stages), desc=final.name, unit="stage", disable=not cfg.progress, leave=False
+    )
 
     def stage(name: str) -> None:
         bar.update()
@@ -318,7 +322,7 @@ def _execute(cfg: ExperimentConfig, partial: Path, final: Path) -> dict:
             stage("eval")
             # eval_compile_s: the whole evaluation's compilation; the shading's own is the evaluation's
             # shading_compile_s (first run − median of repeats), its run time shading_s_per_frame
-            with _timed(timings, "eval", drjit=cfg.eval.backend == "mitsuba"):
+            with _timed(timings, "eval", drjit=resolve_backend(cfg.eval.backend) == "mitsuba"):
                 metrics["eval"] = _evaluate(scene, lf, cfg, caster, k_eval, partial)
         if cfg.export.formats:
             stage("export")
@@ -413,10 +417,11 @@ def _bake_stage(cfg: ExperimentConfig, scene, probes, key, partial: Path, timing
     import jax
 
     from ..probes import bake_depth_for, bake_probes, path_traced_radiance, save_probes
-    from ..render import default_caster
+    from ..render import default_caster, resolve_backend
 
     caster = default_caster(scene)
-    mitsuba = cfg.bake.backend == "mitsuba"
+    backend = resolve_backend(cfg.bake.backend)
+    mitsuba = backend == "mitsuba"
     with _timed(timings, "bake", drjit=mitsuba):
         lf = bake_probes(
             scene,
@@ -428,7 +433,7 @@ def _bake_stage(cfg: ExperimentConfig, scene, probes, key, partial: Path, timing
                 spp=cfg.bake.spp,
                 max_depth=bake_depth_for(cfg.tracer.max_depth),
                 caster=None if mitsuba else caster,  # Mitsuba casts its own rays (Embree)
-                backend=cfg.bake.backend,
+                backend=backend,
             ),
             key=key,
             config=bake_config(cfg),

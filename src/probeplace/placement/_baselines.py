@@ -18,7 +18,7 @@ import numpy as np
 
 from .._core import ConfigError, Scene, host_rng, scene_box, stream
 from ..geometry import build_sdf
-from ._finish import finish_lattice
+from ._finish import finish_lattice, usable_count, valid_settings
 from ._fitness import make_problem
 from ._place import _refining_grid_dims, smallest_full_grid, timed
 from ._registry import PlacementMethod, PlaceRequest, PlaceResult, register_method
@@ -102,18 +102,22 @@ def _shift(method: str, options) -> np.ndarray:
     return shift
 
 
-def _grid_dims_for_budget(scene: Scene, budget: int, inside: str, sdf) -> tuple:
-    """The uniform grid (spacing shrinking by 10%) whose active probe count is nearest ``budget`` (the
-    coarser on a tie); ``_finish`` then trims or fills it to exactly ``budget``. ``sdf`` (the scene's,
-    built once by the caller) classifies the probes inside geometry for every candidate."""
+def _grid_dims_for_budget(scene: Scene, request: PlaceRequest, inside: str, sdf) -> tuple:
+    """The uniform grid (spacing shrinking by 10%) whose usable probe count (``_finish.usable_count``:
+    active, valid and reachable) is nearest the budget (the coarser on a tie); ``_finish`` then trims or
+    fills it to exactly the budget. ``sdf`` (the scene's, built once by the caller) classifies the probes
+    inside geometry for every candidate."""
     from ._uniform import uniform_probe_grid
 
     lo, hi = scene_box(scene)
+    budget = int(request.budget)
     best, best_n = (1, 1, 1), None
     for dims in _refining_grid_dims(lo, hi):
         if int(np.prod(dims)) > 64 * budget + 64:
             return best
-        n = uniform_probe_grid(scene, dims=dims, inside=inside, sdf=sdf).probes.n_active
+        probes = uniform_probe_grid(scene, dims=dims, inside=inside, sdf=sdf).probes
+        active = np.asarray(probes.pos_world)[np.asarray(probes.active)]
+        n = len(active) if inside == "keep" else usable_count(scene, request, active, sdf=sdf)
         if best_n is None or abs(n - budget) < abs(best_n - budget):
             best, best_n = dims, n
         if n >= budget:
@@ -137,7 +141,7 @@ def place_grid(scene: Scene, request: PlaceRequest, options: GridOptions) -> Pla
         if n < 0:
             raise ConfigError("no uniform grid up to 4096 probes reaches full coverage; give a budget")
     elif dims is None:
-        dims = _grid_dims_for_budget(scene, int(request.budget), options.inside, sdf)
+        dims = _grid_dims_for_budget(scene, request, options.inside, sdf)
     jitter = float(options.jitter)
     cell = (hi - lo) / np.broadcast_to(np.asarray(dims, np.float64), (3,))
     offset = np.asarray(options.offset, np.float64) + shift / cell
@@ -165,8 +169,9 @@ def place_grid(scene: Scene, request: PlaceRequest, options: GridOptions) -> Pla
 
 
 def place_lod_grid(scene: Scene, request: PlaceRequest, options: LodGridOptions) -> PlaceResult:
-    """Yang 2023's mixed-resolution grid at ``levels``, or with a budget the level (≤ ``levels``) whose probe
-    count is nearest it (the coarser on a tie), then trimmed or filled to it by ``_finish``."""
+    """Yang 2023's mixed-resolution grid at ``levels``, or with a budget the level (≤ ``levels``) whose usable
+    probe count (``_finish.usable_count``) is nearest it (the coarser on a tie), then trimmed or filled to
+    it by ``_finish``."""
     from ._lod_grid import lod_probe_grid
 
     shift = _shift("lod-grid", options)
@@ -179,14 +184,18 @@ def place_lod_grid(scene: Scene, request: PlaceRequest, options: LodGridOptions)
         base = tuple(int(max(1, round(4 * e / np.max(hi - lo)))) for e in hi - lo)
     budget = request.budget
     levels = range(int(options.levels) + 1) if budget != "auto" else [int(options.levels)]
-    g = None
+    g, g_n = None, 0
     for lvl in levels:
         level = lod_probe_grid(
             scene, base_divisions=tuple(base), sub_division_level=lvl, bounds=(lo + shift, hi + shift)
         )
-        if g is None or abs(level.probe_count - int(budget)) < abs(g.probe_count - int(budget)):
+        if budget == "auto":
             g = level
-        if budget == "auto" or level.probe_count >= int(budget):
+            break
+        n = usable_count(scene, request, level.positions, sdf=sdf)  # valid and reachable, as _finish keeps
+        if g is None or abs(n - int(budget)) < abs(g_n - int(budget)):
+            g, g_n = level, n
+        if n >= int(budget):
             break
     timings["build_s"] = time.perf_counter() - t0
     info = {
@@ -223,6 +232,11 @@ def place_vardis(scene: Scene, request: PlaceRequest, options: VardisOptions) ->
     sdf = _build_sdf(scene, timings)
     t0 = time.perf_counter()
     dense = _dense_set(scene, options, shift, k_g)
+    reach = valid_settings(scene, request, sdf)[2]
+    n_unreachable = 0
+    if reach is not None and reach.contains(dense).any():  # simplify what a viewer can get to (_reach)
+        n_unreachable = int((~reach.contains(dense)).sum())
+        dense = dense[reach.contains(dense)]
     timings["dense_s"] = time.perf_counter() - t0
     o = options
     values = timed(
@@ -260,6 +274,7 @@ def place_vardis(scene: Scene, request: PlaceRequest, options: VardisOptions) ->
     info = {
         "config": asdict(options),
         "n_dense": len(dense),
+        "n_dense_unreachable": n_unreachable,
         "vardis_error": res.error,
         "vardis_iterations": res.n_iterations,
         "vardis_history": {"count": res.history_count.tolist(), "error": res.history_error.tolist()},

@@ -25,6 +25,7 @@ from .._core import ConfigError, ProbeSet, Scene, scene_box, stream
 from ..geometry import AbstractRayCaster
 from ._budget import fit_to_budget
 from ._fitness import FitnessConfig, PlacementProblem, binary_coverage, binary_visibility, make_problem
+from ._reach import reachable_space, view_positions
 from ._refine import get_refiner
 from ._registry import PlaceRequest, PlaceResult
 from ._valid import Region, default_clearance, make_valid, valid_candidates
@@ -97,22 +98,21 @@ def make_usable(
     the fill before the valid-space lattice. ``valid=False`` (the grid's ``inside="keep"``, kept to show
     the classic failure) skips step 1. Returns (positions, record for the metadata)."""
     pos = np.asarray(pos, np.float32).reshape(-1, 3)
-    lo, hi = (np.asarray(v, np.float64) for v in scene_box(scene))
-    clearance = default_clearance(scene, sdf) if request.clearance is None else float(request.clearance)
-    region = Region.from_config(request.region)
+    clearance, region, reach, lo, hi = valid_settings(scene, request, sdf)
+    reach = reach if valid else None
     record: dict = {}
     if valid:
-        v = make_valid(sdf, pos, clearance=clearance, region=region, lo=lo, hi=hi)
+        v = make_valid(sdf, pos, clearance=clearance, region=region, lo=lo, hi=hi, reach=reach)
         pos = np.asarray(v.pos, np.float32)[~np.asarray(v.dropped)]
         record["valid_space"] = v.record()
     if request.budget == "auto":
         return pos, record
 
     def pool(n_needed: int) -> np.ndarray:
-        extra = _usable_spare(spare, sdf, clearance, region, lo, hi) if valid else np.zeros((0, 3))
+        extra = _usable_spare(spare, sdf, clearance, region, lo, hi, reach) if valid else np.zeros((0, 3))
         spacing = float(np.prod(hi - lo) / max(8 * (n_needed + len(pos)), 1)) ** (1 / 3)
         for _ in range(6):  # refine the lattice until the valid space offers enough points
-            lattice = valid_candidates(sdf, lo, hi, clearance, region if valid else None, spacing)
+            lattice = valid_candidates(sdf, lo, hi, clearance, region if valid else None, spacing, reach)
             if len(extra) + len(lattice) >= n_needed:
                 break
             spacing /= 2
@@ -128,11 +128,37 @@ def make_usable(
     return fit.pos, record
 
 
-def _usable_spare(spare, sdf, clearance, region, lo, hi) -> np.ndarray:
+def valid_settings(scene: Scene, request: PlaceRequest, sdf):
+    """What step 1 checks for ``request``: (clearance, region, reachable space or None, lo, hi)."""
+    lo, hi = (np.asarray(v, np.float64) for v in scene_box(scene))
+    clearance = default_clearance(scene, sdf) if request.clearance is None else float(request.clearance)
+    return (
+        clearance,
+        Region.from_config(request.region),
+        reachable_space(sdf, clearance, view_positions(scene)),
+        lo,
+        hi,
+    )
+
+
+def usable_count(scene: Scene, request: PlaceRequest, pos, *, sdf) -> int:
+    """How many of ``pos`` step 1 keeps (valid space, reach included): the count a lattice method compares
+    with its budget when it picks a lattice."""
+    pos = np.asarray(pos, np.float32).reshape(-1, 3)
+    if not len(pos):
+        return 0
+    clearance, region, reach, lo, hi = valid_settings(scene, request, sdf)
+    v = make_valid(sdf, pos, clearance=clearance, region=region, lo=lo, hi=hi, reach=reach)
+    return int((~v.dropped).sum())
+
+
+def _usable_spare(spare, sdf, clearance, region, lo, hi, reach) -> np.ndarray:
     """The spare candidates that are already valid (no relocation: they are offered, not owed)."""
     if spare is None or not len(spare):
         return np.zeros((0, 3), np.float32)
-    v = make_valid(sdf, np.asarray(spare, np.float32), clearance=clearance, region=region, lo=lo, hi=hi)
+    v = make_valid(
+        sdf, np.asarray(spare, np.float32), clearance=clearance, region=region, lo=lo, hi=hi, reach=reach
+    )
     ok = ~np.asarray(v.moved) & ~np.asarray(v.dropped)
     return np.asarray(spare, np.float32).reshape(-1, 3)[ok]
 

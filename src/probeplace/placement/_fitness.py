@@ -73,6 +73,8 @@ from ..geometry import (
     trace_sdf_rays,
 )
 from ._field import tighten_sdf
+from ._reach import ReachableSpace, reachable_space, view_positions
+from ._valid import default_clearance
 
 
 def dynamic_float(v):
@@ -226,7 +228,14 @@ def _normal_march_jit(grid: SDFGrid, lo, hi, clearance, tau, tt, dt, position, n
 
 
 def coverable_mask(
-    grid: SDFGrid, samples: SurfaceSamples, lo: Array, hi: Array, clearance: float, diag: float
+    grid: SDFGrid,
+    samples: SurfaceSamples,
+    lo: Array,
+    hi: Array,
+    clearance: float,
+    diag: float,
+    *,
+    reach: ReachableSpace | None = None,
 ) -> np.ndarray:
     """Samples some feasible probe can see head-on (module docstring).
 
@@ -236,10 +245,14 @@ def coverable_mask(
     space up to a t where the point is inside the box [lo, hi] and at
     least ``clearance`` from every surface: a probe there sees x along −n. This excludes the floor under
     a block, a block's underside, a flat roof at the top of the box and slits thinner than the probe
-    clearance (the gap between a pillar and the roof above it).
+    clearance (the gap between a pillar and the roof above it). With ``reach`` (``_reach``) that point must
+    also be reachable from the views: a roof's top or a vault's back is seen only from sealed-off space.
     """
-    ok, _ = _normal_march(grid, lo, hi, clearance, diag, samples.position, samples.normal)
-    return np.asarray(ok)
+    ok, q = _normal_march(grid, lo, hi, clearance, diag, samples.position, samples.normal)
+    ok = np.asarray(ok)
+    if reach is not None:
+        ok = ok & reach.contains(np.asarray(q))
+    return ok
 
 
 def witness_positions(problem: PlacementProblem, idx: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -291,6 +304,9 @@ def make_problem(
     config = FitnessConfig() if config is None else config
     if grid is None:
         grid = build_sdf(scene) if cache_dir is None else build_sdf(scene, cache_dir=cache_dir)
+    # the valid space's reach (_reach; the raw grid, as make_valid reads it): a sample whose only witnesses
+    # are sealed off from the views (Sponza's roof tops, vault backs) is not coverable
+    reach = reachable_space(grid, default_clearance(scene, grid), view_positions(scene))
     grid, _ = tighten_sdf(grid)
     if samples is None:
         spacing = None
@@ -304,10 +320,10 @@ def make_problem(
     lo, hi = scene.bounds[0], scene.bounds[1]
     diag = float(np.linalg.norm(np.asarray(hi) - np.asarray(lo)))
     clearance = config.clearance_voxels * float(grid.voxel_size)
-    cov = coverable_mask(grid, samples, lo, hi, clearance, diag)
+    cov = coverable_mask(grid, samples, lo, hi, clearance, diag, reach=reach)
     if config.two_sided:
         back = SurfaceSamples(samples.position, -samples.normal, samples.area, samples.material, samples.tri)
-        cov = cov | coverable_mask(grid, back, lo, hi, clearance, diag)
+        cov = cov | coverable_mask(grid, back, lo, hi, clearance, diag, reach=reach)
     area = np.asarray(samples.area, np.float64)
     w = np.where(cov, area, 0.0)
     w = w / max(w.sum(), 1e-300)

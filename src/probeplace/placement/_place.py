@@ -17,7 +17,7 @@ import numpy as np
 from .._core import Scene, load_pyplot, stream
 from ..geometry import AbstractRayCaster, build_sdf
 from ._auto import auto_budget
-from ._finish import coverage_context, make_usable, probe_set, refine_problem
+from ._finish import coverage_context, make_usable, probe_set, refine_problem, valid_settings
 from ._fitness import FitnessConfig, binary_coverage, binary_visibility, probe_clearance
 from ._grid import grid_dims, uniform_grid
 from ._refine import get_refiner
@@ -99,6 +99,9 @@ def _place_seeded(
     cov = timed(timings, "problem_s", coverage_context, scene, r, grid)
     problem = cov.problem
     cand = timed(timings, "seeds_s", _seed_candidates, problem, seeds)
+    reach = valid_settings(scene, r, grid)[2]
+    if reach is not None and reach.contains(cand).any():  # search among probes a viewer can get to
+        cand = cand[reach.contains(cand)]
     ref, opt_problem = None, None
     if r.refiner is not None:
         ref = get_refiner(r.refiner, objective=r.objective)

@@ -6,7 +6,9 @@ A probe position is *valid* when
 2. it lies in the placement :class:`Region` (where the viewer can be: a union of axis-aligned boxes and/or
    a height band above the floor); no region means the whole box;
 3. its signed distance is at least the ``clearance`` (:func:`default_clearance` unless configured), read
-   from the SDF grid (:func:`probeplace.geometry.lookup_sdf`).
+   from the SDF grid (:func:`probeplace.geometry.lookup_sdf`);
+4. when the scene has views, the viewer can get to it: it lies in the free space connected to a view
+   camera (``_reach``; not between Sponza's vaults and roof, nor in a sealed void).
 
 :func:`make_valid` makes a set of positions valid, in this order (each step only touches the probes that
 need it, so a valid probe comes back bit-identical):
@@ -21,10 +23,12 @@ need it, so a valid probe comes back bit-identical):
   growing radii where the gradient is useless (deep inside thick solids), the nearer success winning
   (:func:`_relocate`). The move stays inside the region box the probe is in (each one it is in is tried);
 * **drop**: a probe that cannot reach the clearance inside the region (no free space within reach, e.g.
-  deep in a solid that fills the box) is marked ``dropped`` and keeps its input position; the caller
-  disables or removes it (DDGI's probe classification turns such probes off).
+  deep in a solid that fills the box), or whose position is sealed off from the viewer (condition 4:
+  ``unreachable``; it is not moved, since the nearest reachable point may be far — the budget fill puts
+  a probe where the set needs one instead) is marked ``dropped`` and keeps its input position; the
+  caller disables or removes it (DDGI's probe classification turns such probes off).
 
-Every returned non-dropped position is re-checked on the host against all three conditions (float64
+Every returned non-dropped position is re-checked on the host against all four conditions (float64
 comparisons), so ``lookup_sdf(sdf, res.pos[~res.dropped]) >= clearance`` holds exactly.
 """
 
@@ -43,6 +47,7 @@ import numpy as np
 
 from .._core import ConfigError, Scene, next_pow2, scene_box
 from ..geometry import SDFGrid, lookup_sdf, sdf_value, sdf_value_and_grad
+from ._reach import ReachableSpace
 
 #: Keys of a region config (``Region.from_config``).
 REGION_KEYS = ("boxes", "height", "floor")
@@ -374,6 +379,8 @@ class ValidSpace:
         relocated: (n,) bool, moved out of geometry to the clearance (not dropped).
         moved: (n,) bool, ``projected | relocated``.
         dropped: (n,) bool, no valid position found (position left as given); disable or remove these.
+        unreachable: (n,) bool, dropped because its position (valid otherwise) is sealed off from the
+            viewer (``_reach``); a subset of ``dropped``.
         clearance: the clearance used, scene units.
         region: the region used.
     """
@@ -383,6 +390,7 @@ class ValidSpace:
     relocated: np.ndarray
     moved: np.ndarray
     dropped: np.ndarray
+    unreachable: np.ndarray
     clearance: float
     region: Region
 
@@ -415,6 +423,7 @@ class ValidSpace:
             "n_projected": self.n_projected,
             "n_moved": self.n_moved,
             "n_dropped": self.n_dropped,
+            "n_unreachable": int(self.unreachable.sum()),
             "region": self.region.to_config(),
         }
 
@@ -437,6 +446,23 @@ def _inside(p: np.ndarray, lo: np.ndarray, hi: np.ndarray) -> np.ndarray:
     return np.all((p >= lo) & (p <= hi), axis=-1)
 
 
+def _project(p: np.ndarray, pieces, dtype) -> np.ndarray:
+    """Each row moved to the nearest point of the nearest region piece (bounds rounded inward to ``dtype``,
+    so the cast result stays inside; rounding is monotone); rows no piece can take come back unchanged."""
+    p64 = p.astype(np.float64)
+    best = np.full(len(p64), np.inf)
+    q_best = p64.copy()
+    for plo, phi in pieces:
+        box = _inward(plo, phi, dtype)
+        if box is None:
+            continue
+        q = np.clip(p64, box[0].astype(np.float64), box[1].astype(np.float64))
+        d2 = np.sum((q - p64) ** 2, axis=1)
+        closer = d2 < best
+        best[closer], q_best[closer] = d2[closer], q[closer]
+    return q_best.astype(dtype)
+
+
 def make_valid(
     sdf: SDFGrid,
     pos: np.ndarray | jax.Array,
@@ -446,6 +472,7 @@ def make_valid(
     lo: np.ndarray | jax.Array | Sequence,
     hi: np.ndarray | jax.Array | Sequence,
     max_steps: int = 16,
+    reach: ReachableSpace | None = None,
 ) -> ValidSpace:
     """Project probes into the region, relocate those too close to geometry, drop the rest (module docstring).
 
@@ -463,6 +490,8 @@ def make_valid(
         region: a :class:`Region`, its config mapping, or ``None`` (everywhere in the box).
         lo, hi: the placement box (usually the scene box); the height band's floor defaults to ``lo[1]``.
         max_steps: relocation Newton steps (static: a new value compiles again).
+        reach: the reachable free space (``_reach.reachable_space``); a probe outside it is dropped
+            (``unreachable``), since no view reads the light it holds. ``None``: no such condition.
 
     Returns:
         The positions and masks (:class:`ValidSpace`).
@@ -490,22 +519,11 @@ def make_valid(
     def valid_place(q: np.ndarray) -> np.ndarray:
         return _inside(q.astype(np.float64), lo, hi) & region.contains(q, floor=floor)
 
-    # 1. projection: the nearest point of the nearest piece (bounds rounded inward to dtype, so the cast
-    # result stays inside; rounding is monotone)
+    # 1. projection: the nearest point of the nearest piece; rows no piece could take stay put and are
+    # dropped below
     projected = ~valid_place(p_in)
     if projected.any():
-        p64 = p_in[projected].astype(np.float64)
-        best = np.full(len(p64), np.inf)
-        q_best = p64.copy()
-        for plo, phi in pieces:
-            box = _inward(plo, phi, dtype)
-            if box is None:
-                continue
-            q = np.clip(p64, box[0].astype(np.float64), box[1].astype(np.float64))
-            d2 = np.sum((q - p64) ** 2, axis=1)
-            closer = d2 < best
-            best[closer], q_best[closer] = d2[closer], q[closer]
-        out[projected] = q_best.astype(dtype)  # rows no piece could take stay put and are dropped below
+        out[projected] = _project(p_in[projected], pieces, dtype)
     # 2. relocation of the probes below the clearance, inside each piece they are in
     need = lookup_sdf(sdf, out).astype(np.float64) < c
     relocated = np.zeros(n, bool)
@@ -538,7 +556,8 @@ def make_valid(
         relocated[idx[reached]] = True
     # 3. verify every row on the host; failures are dropped and keep their input position
     ok = valid_place(out) & (lookup_sdf(sdf, out).astype(np.float64) >= c)
-    dropped = ~ok
+    unreachable = ok & ~reach.contains(out) if reach is not None else np.zeros(n, bool)
+    dropped = ~ok | unreachable
     out[dropped] = p_in[dropped]
     projected &= ~dropped
     relocated &= ~dropped
@@ -548,6 +567,7 @@ def make_valid(
         relocated=relocated,
         moved=projected | relocated,
         dropped=dropped,
+        unreachable=unreachable,
         clearance=c,
         region=region,
     )
@@ -560,6 +580,7 @@ def valid_candidates(
     clearance: float | int,
     region: Region | Mapping | None,
     spacing: float | int,
+    reach: ReachableSpace | None = None,
 ) -> np.ndarray:
     """Lattice points in valid space: for filling a budget with extra probes.
 
@@ -573,6 +594,7 @@ def valid_candidates(
         clearance: minimum SDF value, scene units.
         region: a :class:`Region`, its config mapping, or ``None``.
         spacing: lattice spacing, scene units.
+        reach: keep only reachable points (``_reach``), or ``None``.
 
     Returns:
         (m, 3) float32 positions, world frame (m may be 0).
@@ -605,4 +627,6 @@ def valid_candidates(
     pts = pts[keep]
     if len(pts):
         pts = pts[lookup_sdf(sdf, pts).astype(np.float64) >= c]
+    if reach is not None and len(pts):
+        pts = pts[reach.contains(pts)]
     return pts

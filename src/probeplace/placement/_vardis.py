@@ -567,7 +567,7 @@ def vardis_simplify(
         ConfigError: bad shapes or options, no stopping rule.
     """
     n = _check_stopping(positions, target, tolerance, per_iteration)
-    from tqdm.auto import tqdm
+    from .._core._progress import progress_bar
 
     t0 = time.perf_counter()
     mesh, scorer = _setup(positions, values, points, error, n_dirs, weights, tet_jitter, tet_seed)
@@ -578,7 +578,7 @@ def vardis_simplify(
     total = 0.0
     dirty = set(range(n))
     hist_c, hist_e = [n], [0.0]
-    bar = tqdm(total=n - stop, disable=not progress, desc="vardis", leave=False)
+    bar = progress_bar(total=n - stop, disable=not progress, desc="vardis", leave=False)
     while int(mesh.alive.sum()) > stop:
         _rescore(st, dirty, lazy)
         n_alive = int(mesh.alive.sum())

@@ -55,7 +55,6 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 from jaxtyping import Array, Float
-from tqdm.auto import tqdm
 
 from .._core import (
     BAKE_SETTINGS_VERSION,
@@ -71,6 +70,7 @@ from .._core import (
     texel_directions,
 )
 from .._core._errors import check_memory
+from .._core._progress import progress_bar
 from ._filter import distance_moments, irradiance_map, mip_chains
 from ._inside import probes_inside
 
@@ -173,7 +173,8 @@ def path_traced_radiance(
             floor, roughness 0.22, this made a perfect trace's glossy MSE 3.2× larger, issue 16).
         caster: ray caster (default ``render.default_caster``; ``backend="jax"`` only).
         backend: ``"jax"`` (default) or ``"mitsuba"`` (``render.RenderConfig.backend``: the same
-            estimator and random numbers compiled by Mitsuba 3 on the CPU, several times faster there).
+            estimator and random numbers compiled by Mitsuba 3 on the CPU, several times faster there), or
+            ``"auto"`` (``render.resolve_backend``; a ``caster`` is then used only if JAX is picked).
 
     Raises:
         SceneError: the scene has no light (every baked map would be black).
@@ -194,10 +195,11 @@ def path_traced_radiance(
         raise ConfigError(
             f"path_traced_radiance: first_hit_lobes must be one of {FIRST_HIT_LOBES}, got {first_hit_lobes!r}"
         )
-    from ..render import BACKENDS
+    from ..render import resolve_backend
 
-    if backend not in BACKENDS:
-        raise ConfigError(f"path_traced_radiance: backend must be one of {BACKENDS}, got {backend!r}")
+    requested, backend = backend, resolve_backend(backend, "path_traced_radiance: backend")
+    if backend == "mitsuba" and requested == "auto":
+        caster = None  # a caster only speeds the JAX path tracer up; Mitsuba casts with Embree
     if backend == "mitsuba" and caster is not None:
         raise ConfigError(
             "path_traced_radiance: a caster is a backend='jax' option (Mitsuba casts with Embree)"
@@ -432,7 +434,7 @@ def bake_probes(
     _warn_probe_layout(pos[np.asarray(probes.active)], lo, hi, "bake")  # inactive rows are padding
     parts: list[tuple] = []
     keys = jax.random.split(key, (n + bsz - 1) // bsz)
-    bar = tqdm(total=n, desc=f"bake {res}² probes", unit="probe", disable=not config.progress)
+    bar = progress_bar(total=n, desc=f"bake {res}² probes", unit="probe", disable=not config.progress)
     for i, start in enumerate(range(0, n, bsz)):
         parts.append(
             _bake_batch(

@@ -30,12 +30,14 @@ from ._lights import light_table as light_table
 from ._lights import sample_light as sample_light
 from ._mitsuba import best_mitsuba_variant as best_mitsuba_variant
 from ._mitsuba import mitsuba_scene_dict as mitsuba_scene_dict
+from ._render import BACKEND_CHOICES as BACKEND_CHOICES
 from ._render import BACKENDS as BACKENDS
 from ._render import RayRadiance as RayRadiance
 from ._render import RenderConfig as RenderConfig
 from ._render import RenderResult as RenderResult
 from ._render import default_caster as default_caster
 from ._render import render as render
+from ._render import resolve_backend as resolve_backend
 from ._render import trace_rays as trace_rays
 from ._sampling import N_UNIFORMS as N_UNIFORMS
 from ._sampling import make_frame as make_frame

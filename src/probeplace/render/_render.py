@@ -13,6 +13,8 @@ gets a Python bounce loop whose shading steps are jitted.
 
 from __future__ import annotations
 
+import functools
+import logging
 from dataclasses import dataclass
 
 import equinox as eqx
@@ -20,19 +22,54 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 from jaxtyping import Array, Bool, Float, Int, Key, UInt32
-from tqdm.auto import tqdm
 
 from .._core import Camera, ConfigError, Scene, SceneError, next_pow2
 from .._core._errors import check_memory
+from .._core._progress import progress_bar
 from ..geometry import AbstractRayCaster, make_caster
 from ._camera import camera_rays
 from ._integrator import COMPONENTS, Paths, ShadeContext, add_shadowed, components, init_paths, shade
 from ._lights import light_table
 from ._sampling import DIM_DIR_U, path_uniforms, seed_from_key
 
+log = logging.getLogger(__name__)
+
 SCHEDULES = ("compact", "fused")
 #: Who runs the path tracer: JAX (default: any device, jittable casters) or Mitsuba 3's LLVM backend (CPU).
 BACKENDS = ("jax", "mitsuba")
+#: What a config may name: a backend, or ``"auto"`` (:func:`resolve_backend`).
+BACKEND_CHOICES = ("auto", *BACKENDS)
+
+
+@functools.cache
+def _auto_backend() -> str:
+    if jax.default_backend() != "cpu":  # on a GPU the JAX path tracer is the fast one
+        return "jax"
+    from ._mitsuba_backend import load_mitsuba
+
+    try:
+        load_mitsuba()
+    except ImportError as e:
+        log.info("backend auto: Mitsuba's LLVM variant cannot load, using jax (%s)", e)
+        return "jax"
+    return "mitsuba"
+
+
+def resolve_backend(backend: str, who: str = "backend") -> str:
+    """The path tracer that runs for a configured ``backend`` (one of :data:`BACKEND_CHOICES`).
+
+    ``"auto"`` is ``"jax"`` when JAX's default device is an accelerator, else ``"mitsuba"`` where Mitsuba 3's
+    LLVM variant loads (4–9× the JAX path tracer's samples/s on a CPU, benchmarks/pathtrace.py), else
+    ``"jax"``; the two agree within noise (tests/render/test_mitsuba_backend.py), so ``auto`` changes speed,
+    not the estimate's expectation. Settings records (``BakeSettings.backend``, ``metrics["backend"]``) hold
+    the resolved name.
+
+    Raises:
+        ConfigError: ``backend`` is not one of :data:`BACKEND_CHOICES` (``who`` names the setting).
+    """
+    if backend not in BACKEND_CHOICES:
+        raise ConfigError(f"{who} must be one of {BACKEND_CHOICES}, got {backend!r}")
+    return _auto_backend() if backend == "auto" else backend
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -56,6 +93,7 @@ class RenderConfig:
         backend: ``"jax"`` (default) or ``"mitsuba"``: the same model, estimator and random numbers
             compiled by Mitsuba 3 / Dr.Jit with Embree ray casts (``_mitsuba_backend``; CPU only, several
             times faster there; docs/render.md "Backends"). ``schedule`` and a ``caster`` are JAX-only.
+            ``"auto"`` is replaced by the backend :func:`resolve_backend` picks.
     """
 
     width: int
@@ -78,8 +116,7 @@ class RenderConfig:
             raise ConfigError(f"RenderConfig.schedule must be one of {SCHEDULES}, got {self.schedule!r}")
         if not 0.0 <= float(self.specular) <= 1.0:
             raise ConfigError(f"RenderConfig.specular must be in [0, 1], got {self.specular!r}")
-        if self.backend not in BACKENDS:
-            raise ConfigError(f"RenderConfig.backend must be one of {BACKENDS}, got {self.backend!r}")
+        object.__setattr__(self, "backend", resolve_backend(self.backend, "RenderConfig.backend"))
 
 
 class RenderResult(eqx.Module):
@@ -352,7 +389,7 @@ def _accumulate(scene, source, n_items: int, config: RenderConfig, seed, caster,
     m2 = np.zeros_like(mean)
     # the Mitsuba batches take plain ints (a JAX scalar costs a dispatch per batch there)
     i32 = int if config.backend == "mitsuba" else (lambda x: jnp.asarray(x, jnp.int32))
-    bar = tqdm(total=config.spp * n_items, disable=not config.progress, unit=unit, unit_scale=True)
+    bar = progress_bar(total=config.spp * n_items, disable=not config.progress, unit=unit, unit_scale=True)
     for s0 in range(0, config.spp, g):
         for pix0 in range(0, n_items, p):
             src = source(pix0, p) if callable(source) else source

@@ -1,0 +1,203 @@
+"""What the report reads from a run record, its statistics over seeds and the words for its metric keys.
+
+A run record is a finished run's ``metrics.json`` plus ``dir`` (``_report.load_runs``). Each statistic is
+written once here and used by both the charts (``_report_charts``) and the tables (``_report``):
+
+* :func:`t_interval`: the mean and its Student-t confidence interval (95 %, n − 1 degrees of freedom,
+  sample standard deviation with ddof = 1) — the spread of a cell's seeds, not of its pixels.
+* :func:`log_t_interval`: the same in log space, mapped back (geometric mean, an interval that stays
+  positive on a log axis): used for MSEs and MSE ratios, whose seed-to-seed spread is multiplicative.
+* :func:`seed_paired_ratio`: :func:`log_t_interval` of method ÷ grid, one ratio per seed.
+
+:data:`METRIC_WORDS` is the one mapping from metric keys to the words figures and tables print.
+"""
+
+from __future__ import annotations
+
+import math
+from collections import defaultdict
+from collections.abc import Callable
+
+import numpy as np
+
+PRIMARY = "mse_glossy_indirect"
+MSE_KEYS = ("mse_glossy_indirect", "mse_diffuse_indirect", "mse_full")
+LEVEL = 0.95
+
+#: Metric key → the words a reader sees (axis labels, titles, table headers).
+METRIC_WORDS = {
+    "mse_glossy_indirect": "glossy indirect MSE",
+    "mse_diffuse_indirect": "diffuse indirect MSE",
+    "mse_full": "full image MSE",
+    "noise_floor_glossy_indirect": "reference noise floor (glossy indirect)",
+    "noise_floor_diffuse_indirect": "reference noise floor (diffuse indirect)",
+    "noise_floor_full": "reference noise floor (full image)",
+    "mse_black_glossy_indirect": "black image (no indirect light)",
+    "mse_black_diffuse_indirect": "black image (no indirect light)",
+    "n_probes": "probes",
+    "memory_bytes": "probe memory (KiB)",
+    "place_bake_run_s": "placement + bake run time, JIT compilation excluded (s)",
+    "shading_ms_per_frame": "shading per frame, compilation excluded (ms)",
+    "uncovered": "uncovered share of the surface",
+    "light_leak_pixels": "light-leak pixels",
+    "light_leak_share": "light-leak share of judged pixels",
+    "coverage": "surface coverage",
+}
+
+
+def words(key: str) -> str:
+    """The words for a metric key (:data:`METRIC_WORDS`); an unlisted key is spelled with spaces."""
+    return METRIC_WORDS.get(key, key.replace("_", " "))
+
+
+def t_interval(values, level: float = LEVEL) -> tuple[float, float, float]:
+    """``(mean, lo, hi)``: the mean of ``values`` and its two-sided Student-t interval at ``level``
+    (half-width t_{(1+level)/2, n−1} · s / √n, s with ddof = 1); ``(mean, nan, nan)`` for one value.
+
+    Raises:
+        ValueError: no value.
+    """
+    v = np.asarray(values, np.float64).reshape(-1)
+    if not v.size:
+        raise ValueError("t_interval needs at least one value")
+    mean = float(v.mean())
+    if v.size < 2:
+        return mean, math.nan, math.nan
+    from scipy import stats
+
+    half = float(stats.t.ppf(0.5 + level / 2, v.size - 1) * v.std(ddof=1) / math.sqrt(v.size))
+    return mean, mean - half, mean + half
+
+
+def log_t_interval(values, level: float = LEVEL) -> tuple[float, float, float] | None:
+    """Geometric mean of the positive ``values`` and :func:`t_interval` taken in log space, mapped back
+    with exp; None when no value is positive (non-positive values have no logarithm and are dropped)."""
+    logs = [math.log(x) for x in values if x > 0 and math.isfinite(x)]
+    if not logs:
+        return None
+    return tuple(math.exp(x) for x in t_interval(logs, level))  # exp(nan) is nan: one value, no interval
+
+
+def seed_paired_ratio(pairs: list[tuple[float, float]]) -> tuple[float, float, float] | None:
+    """Geometric mean of ``method ÷ grid`` over seeds (each pair: one seed's two MSEs) with a 95 %
+    Student-t interval in log space (:func:`log_t_interval`) — the seed-to-seed spread of placement, bake
+    and reference noise together. ``(ratio, lo, hi)``; the interval is (nan, nan) with one seed."""
+    return log_t_interval([m / g for m, g in pairs if m > 0 and g > 0])
+
+
+def cells(runs: list[dict], x_fn: Callable, y_fn: Callable) -> dict:
+    """label → sorted [(x, geometric mean of y, lo, hi, n runs)]: the runs of one label with equal
+    ``x_fn(run)`` form a cell (its seeds and scene offsets), summarised by :func:`log_t_interval`."""
+    by = defaultdict(list)
+    for r in runs:
+        x, y = x_fn(r), y_fn(r)
+        if x is not None and y is not None:
+            by[(r["label"], x)].append(y)
+    out = defaultdict(list)
+    for (lab, x), ys in sorted(by.items()):
+        q = log_t_interval(ys)
+        if q is not None:
+            out[lab].append((x, *q, len(ys)))
+    return dict(out)
+
+
+def _num(v) -> float | None:
+    return float(v) if isinstance(v, int | float) and not isinstance(v, bool) and math.isfinite(v) else None
+
+
+def mse(r: dict, key: str = PRIMARY) -> float | None:
+    """The run's ``eval[key]`` (None when missing or not finite)."""
+    return _num((r.get("eval") or {}).get(key))
+
+
+def black_mse(r: dict, key: str = PRIMARY) -> float | None:
+    """MSE of a black image (no indirect light) for ``mse_glossy_indirect`` / ``mse_diffuse_indirect``: the
+    evaluation's ``mse_black_*``, else the mean square of the saved reference image (older runs)."""
+    comp = key.removeprefix("mse_")
+    if comp not in ("glossy_indirect", "diffuse_indirect"):
+        return None
+    v = mse(r, f"mse_black_{comp}")
+    if v is not None:
+        return v
+    exr = r["dir"] / "eval" / "images.exr"
+    if not exr.exists():
+        return None
+    from ..render._image_io import load_exr
+
+    ref = load_exr(exr).get(f"ref_{comp}")
+    return None if ref is None else float(np.mean(np.asarray(ref, np.float64) ** 2))
+
+
+def run_s(r: dict) -> float | None:
+    """Placement + bake run time without JIT compilation (``timings.place_bake_run_s``); for runs written
+    before the compile/run split, their wall time ``place_bake_s`` (compilation included)."""
+    t = r.get("timings") or {}
+    return _num(t.get("place_bake_run_s", t.get("place_bake_s")))
+
+
+def stage_run_s(r: dict, stage: str) -> float | None:
+    """``<stage>_run_s``, else (older runs) the wall time ``<stage>_s``."""
+    t = r.get("timings") or {}
+    return _num(t.get(f"{stage}_run_s", t.get(f"{stage}_s")))
+
+
+def compile_s(r: dict) -> float | None:
+    """Placement + bake compile time; ``None`` for runs written before the split."""
+    t = r.get("timings") or {}
+    if "bake_compile_s" not in t and "place_compile_s" not in t:
+        return None
+    return float(t.get("place_compile_s", 0.0)) + float(t.get("bake_compile_s", 0.0))
+
+
+def n_unsplit(runs: list[dict]) -> int:
+    """Runs whose metrics.json predates the compile/run split (times include compilation)."""
+    return sum("place_bake_run_s" not in (r.get("timings") or {}) for r in runs)
+
+
+def shade_s(r: dict) -> float | None:
+    """Probe shading seconds per frame, compilation excluded."""
+    return _num((r.get("eval") or {}).get("shading_s_per_frame"))
+
+
+def memory(r: dict) -> float | None:
+    """Bytes of the run's real probes as stored (``metrics.memory.bytes_total``, written by run())."""
+    return _num((r.get("memory") or {}).get("bytes_total"))
+
+
+def leak_share(r: dict) -> float | None:
+    """Share of the judged pixels flagged as light leak (``eval.light_leak_pixels`` ÷
+    ``eval.light_leak_judged_pixels``; None for runs evaluated before the noise-relative definition)."""
+    e = r.get("eval") or {}
+    n, judged = _num(e.get("light_leak_pixels")), _num(e.get("light_leak_judged_pixels"))
+    return None if n is None or not judged else n / judged
+
+
+def pareto_front(points: list) -> list[int]:
+    """Indices of the points not dominated in (x, y), both minimised; sorted by x."""
+    order = sorted(range(len(points)), key=lambda i: (points[i][0], points[i][1]))
+    front, best = [], math.inf
+    for i in order:
+        if points[i][1] < best:
+            front.append(i)
+            best = points[i][1]
+    return front
+
+
+def group(runs: list[dict]) -> dict:
+    """(scene, label) → runs."""
+    g = defaultdict(list)
+    for r in runs:
+        g[(r["scene"], r["label"])].append(r)
+    return g
+
+
+POSES = ("base", "translated", "rotated", "translated+rotated")
+
+
+def pose(r: dict) -> str:
+    """How the run's scene was perturbed against the grid: base, translated, rotated, or both."""
+    moved = any(float(x) != 0.0 for x in r.get("translate_frac") or ())
+    turned = float(r.get("rotate_deg") or 0.0) != 0.0
+    return {(False, False): "base", (True, False): "translated", (False, True): "rotated"}.get(
+        (moved, turned), "translated+rotated"
+    )
