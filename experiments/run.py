@@ -18,8 +18,11 @@ that a key added with ``+key=...``, which Hydra lets through, is refused too.
 Before Hydra starts, :func:`_precheck` composes every run the command line asks for (each swept value
 once) and validates it: an unknown key, a bad value, Hydra's own errors (a misspelt key, a wrong type, a
 missing option), a bake or image too large for memory and an unwritable results folder are one line
-``probeplace: error: ...`` and exit status 2, like the ``probeplace`` command's. Ctrl-C is one line
-``probeplace: interrupted`` and status 130 (the interrupted run's partial folder is removed).
+``probeplace: error: ...`` and exit status 2, like the ``probeplace`` command's. It then loads each scene
+once (``probeplace.experiment.check_scenes``): a scene that cannot be loaded, one with no light for a run
+that bakes, and an ``eval.view`` the scene lacks are refused the same way, before any run starts.
+Ctrl-C is one line ``probeplace: interrupted`` and status 130 (the interrupted run's partial folder is
+removed).
 """
 
 from __future__ import annotations
@@ -128,7 +131,8 @@ def _planned_runs(compose, overrides: list[str], multirun: bool) -> list[list[st
 def _precheck(argv: list[str]) -> None:
     """Compose and validate every run of the command line before Hydra starts any: unknown keys, bad
     values, missing config options, an unwritable results folder or an image too large for memory are
-    one line ``probeplace: error: ...`` and exit status 2, in well under a second per run. Hydra's own
+    one line ``probeplace: error: ...`` and exit status 2, in well under a second per run; then each
+    scene is loaded once to check its light and the runs' ``eval.view`` (module docstring). Hydra's own
     modes (``--help``, ``--cfg``, ``--info``, a custom config path) are left to Hydra."""
     from hydra import compose, initialize_config_dir
     from hydra._internal.utils import get_args_parser
@@ -136,7 +140,7 @@ def _precheck(argv: list[str]) -> None:
     from omegaconf.errors import OmegaConfBaseException
 
     from probeplace._core._checks import check_writable_folder
-    from probeplace.experiment import to_config
+    from probeplace.experiment import check_scenes, to_config
 
     try:
         with contextlib.redirect_stdout(io.StringIO()), contextlib.redirect_stderr(io.StringIO()):
@@ -153,9 +157,13 @@ def _precheck(argv: list[str]) -> None:
             def composed(overrides, return_hydra_config=False):
                 return compose(name, overrides=overrides, return_hydra_config=return_hydra_config)
 
+            cfgs = []
             for overrides in _planned_runs(composed, args.overrides, args.multirun):
                 cfg = to_config(OmegaConf.to_container(composed(overrides), resolve=True))
                 check_writable_folder(Path(cfg.results_dir) / cfg.name, "results_dir")
+                cfgs.append(cfg)
+        # each scene loaded once: light for a bake, the eval.view of every run (before the first starts)
+        check_scenes(cfgs)
     except (HydraException, OmegaConfBaseException) as e:
         _fail(_one_line(e))
     except ProbeplaceError as e:

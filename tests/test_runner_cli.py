@@ -60,6 +60,12 @@ def precheck(runner, capsys):
         ("placer.budget=-3", ["placer.budget: must be 'auto' or a positive integer"]),
         ("eval.width=100000000", ["eval.width × eval.height", "bytes"]),
         ("bake.radiance_res=65536", ["bake.radiance_res=65536", "bytes"]),
+        (
+            "eval.view=nosuch",
+            ["eval.view: scene 'cornell_box' has no view 'nosuch'; views: ['front', 'interior']"],
+        ),
+        ("+scene.overrides.colour=red", ["scene.overrides: colour: unknown key; known keys: cameras"]),
+        ("scene.name=nosuch.obj", ["nosuch.obj", "not found"]),
     ],
 )
 def test_bad_keys_and_values_are_one_line(precheck, tmp_path, override, needles):
@@ -79,6 +85,37 @@ def test_every_swept_value_is_checked(precheck, tmp_path):
     assert "method/nosuch" in precheck([*base, "method=grid,nosuch"])
     # without --multirun a sweep is Hydra's "ambiguous value" error, in one line
     assert "seed=0,1" in precheck([f"results_dir={tmp_path}", "seed=0,1"])
+
+
+def test_every_scene_of_a_sweep_is_loaded_and_checked_first(precheck, tmp_path):
+    """The scene of each run is loaded before the first run starts: a swept scene lacking the view is
+    refused naming its views (not after the first scene's runs have finished)."""
+    base = ["--multirun", f"results_dir={tmp_path}"]
+    line = precheck([*base, "scene=cornell_box,rooms", "eval.view=front"])
+    assert "eval.view: scene 'rooms' has no view 'front'; views: ['lit_room', 'doorway'" in line
+    assert precheck([*base, "scene=cornell_box,rooms", "eval.view=front", "eval.enabled=false"]) is None
+
+
+def test_a_file_scene_without_light_needs_its_sidecar_keys(precheck, tmp_path):
+    """A dark room file is refused for a run that bakes, naming the sidecar keys; placement alone, or the
+    same keys as ``scene.overrides`` (as for a sidecar beside the file), make it pass."""
+    from tests.scene.sidecar_util import write_room_obj
+
+    room = write_room_obj(tmp_path)
+    run = [f"results_dir={tmp_path}/r", f"scene.name={room}", "eval.view=door"]
+    line = precheck(run)
+    assert "room.obj: the scene has no light" in line and "room.probeplace.yaml" in line
+    assert precheck([*run, "bake.enabled=false", "eval.enabled=false"]) is None
+    lit = [
+        "+scene.overrides.sky=daylight",
+        "+scene.overrides.cameras.door={position:[2,1.6,0.5],look_at:[2,1,5]}",
+    ]
+    assert precheck([*run, *lit]) is None
+    (tmp_path / "room.probeplace.yaml").write_text(
+        "sky: daylight\ncameras:\n  door: {position: [2, 1.6, 0.5], look_at: [2, 1, 5]}\n"
+    )
+    assert precheck(run) is None
+    assert not (tmp_path / "r").exists()
 
 
 def test_results_folder_must_be_writable(precheck, tmp_path):

@@ -127,3 +127,27 @@ def test_rooms_without_a_view_in_the_sealed_room_get_no_probe_there():
         in_d = in_dark(np.asarray(problem.position))
         assert in_d.sum() > 50
         assert np.asarray(problem.coverable)[in_d].any() == expect
+
+
+def test_coverable_samples_follow_the_requested_clearance():
+    """The coverage problem's reach uses the request's clearance, as the valid space does: with only the
+    lit room's view and a clearance above half the doorways' 1 m width, rooms B and C are sealed off, so
+    their walls are no longer coverable; at the default clearance they are."""
+    from probeplace.geometry import build_sdf
+    from probeplace.placement._finish import coverage_context
+    from probeplace.placement._registry import PlaceRequest
+    from probeplace.scene import rooms
+
+    scene = rooms()
+    lit_only = dataclasses.replace(scene, views=tuple(v for v in scene.views if v.name == "lit_room"))
+    sdf = build_sdf(lit_only)
+    behind_doors = lambda p: (p[:, 0] > 9.3) | ((p[:, 2] > 5.3) & (p[:, 0] > 4.3))
+    covered = {}
+    for clearance in (None, 0.6):
+        request = PlaceRequest(budget=8, seed=0, clearance=clearance)
+        problem = coverage_context(lit_only, request, sdf).problem
+        far = behind_doors(np.asarray(problem.position))
+        assert far.sum() > 50
+        covered[clearance] = np.asarray(problem.coverable)[far].mean()
+    # (outer faces are never coverable; a few samples at the doorways have witnesses in room A)
+    assert covered[None] > 0.3 and covered[0.6] < 0.01, covered

@@ -397,6 +397,31 @@ def _runner(cfg: dict):
     return run
 
 
+def _runner_scenes(cfg: Callable[[Ctx], dict]):
+    """The runner's scene checks before any run (``experiments/run.py``'s precheck): ``check_scenes``."""
+
+    def run(c):
+        from probeplace.experiment import check_scenes, to_config
+
+        return check_scenes([to_config(cfg(c))])
+
+    return run
+
+
+def _sidecar(text: str, **load):
+    """``load_scene`` of a tetrahedron file (no light, no cameras) with ``text`` as its sidecar."""
+
+    def run(c):
+        from probeplace.scene import load_scene
+
+        c.write("t.obj", tet_obj())
+        if text:
+            c.write("t.probeplace.yaml", text)
+        return load_scene(c.tmp / "t.obj", **load)
+
+    return run
+
+
 def _probe_doc(pos, active=None) -> str:
     return json.dumps({"format": "probeplace.ProbeSet/1", "positions": pos,
                        "active": [True] * len(pos) if active is None else active})  # fmt: skip
@@ -961,6 +986,100 @@ CATALOGUE: list[Entry] = [
         _runner({"colour": "red"}),
         ConfigError,
         r"^colour: not a key of the config; known: \[",
+    ),
+    Entry(
+        "runner-eval-view-unknown",
+        "cli",
+        "runner `eval.view=CameraMain` on a scene without that camera (checked after loading the scene, "
+        "before any run)",
+        _runner_scenes(lambda c: {"eval": {"view": "CameraMain"}}),
+        ConfigError,
+        r"^eval\.view: scene 'cornell_box' has no view 'CameraMain'; views: \['front', 'interior'\]",
+    ),
+    Entry(
+        "runner-scene-no-light",
+        "cli",
+        "runner `scene.name=<file>` with no emitter, sun or sky (no sidecar) for a run that bakes",
+        _runner_scenes(lambda c: {"scene": {"name": str(c.write("t.obj", tet_obj()))}}),
+        SceneError,
+        r"t\.obj: the scene has no light .*add one with a sidecar t\.probeplace\.yaml beside the scene file "
+        r"\(keys: sun, sky, emitters",
+    ),
+    Entry(
+        "runner-scene-overrides-bad",
+        "cli",
+        "runner `'+scene.overrides.sun={azimuth:0,elevation:120}'` (sidecar keys for the runner)",
+        _runner({"scene": {"overrides": {"sun": {"azimuth": 0, "elevation": 120}}}}),
+        ConfigError,
+        r"^scene\.overrides: sun\.elevation: must be in \[-90, 90\], got 120",
+    ),
+    Entry(
+        "run-results-dir-under-a-file",
+        "cli",
+        "`probeplace.experiment.run(cfg)` from Python with `results_dir` under a file (checked before "
+        "the scene is loaded)",
+        lambda c: __import__("probeplace.experiment", fromlist=["x"]).run(
+            {"results_dir": str(c.write("f", "x") / "results"), "eval": {"enabled": False}}
+        ),
+        ConfigError,
+        r"^results_dir: cannot create .*/f/results/default: .*/f is a file, not a folder",
+    ),
+    Entry(
+        "sidecar-unknown-key",
+        "config",
+        "a scene sidecar `t.probeplace.yaml` with a misspelt key (`sunn:`)",
+        _sidecar("sunn: {azimuth: 90, elevation: 35}\n"),
+        ConfigError,
+        r"t\.probeplace\.yaml: sunn: unknown key; known keys: cameras, emitters",
+    ),
+    Entry(
+        "sidecar-invalid-yaml",
+        "config",
+        "a scene sidecar that is not valid YAML",
+        _sidecar("sun: {azimuth: 90\nsky: daylight\n"),
+        ConfigError,
+        r"t\.probeplace\.yaml: .*line",
+    ),
+    Entry(
+        "sidecar-emitter-unknown-material",
+        "config",
+        "a scene sidecar naming an emitter material the scene lacks",
+        _sidecar("emitters:\n  lamp_shade: 20\n"),
+        ConfigError,
+        r"t\.probeplace\.yaml: emitters\.lamp_shade: .*material",
+    ),
+    Entry(
+        "scene-no-light-needs-sidecar",
+        "scene data",
+        "a scene file with no emitter, sun or sky where light is required (`evaluate`, the runner's bake)",
+        _sidecar("", require_light=True),
+        SceneError,
+        r"t\.obj: the scene has no light .*sidecar t\.probeplace\.yaml .*keys: sun, sky, emitters",
+    ),
+    Entry(
+        "cli-sun-bad-elevation",
+        "cli",
+        "`place --sun az=120,el=120`",
+        _cli("probeplace.scene.scene_overrides_from_args", "place", "cornell_box", "--sun", "az=120,el=120"),
+        ConfigError,
+        r"^--sun: .*el.*must be in \[-90, 90\], got 120",
+    ),
+    Entry(
+        "cli-camera-looks-at-itself",
+        "cli",
+        "`evaluate --camera name=c,pos=1,1,1,look_at=1,1,1`",
+        _cli(
+            "probeplace.scene.scene_overrides_from_args",
+            "evaluate",
+            "--scene",
+            "cornell_box",
+            "--probes",
+            "p.json",
+            "--camera",
+            "name=c,pos=1,1,1,look_at=1,1,1",
+        ),
+        ConfigError,
+        r"^--camera c: .*look_at.*equals the position",
     ),
     Entry(
         "runner-results-dir-under-a-file",

@@ -11,6 +11,7 @@ from ._results import is_complete as is_complete
 from ._results import iter_runs as iter_runs
 from ._run import EvaluationUnavailable as EvaluationUnavailable
 from ._run import RunResult as RunResult
+from ._run import check_scenes as check_scenes
 from ._run import failures as failures
 from ._run import load_experiment_scene as load_experiment_scene
 from ._run import run as run

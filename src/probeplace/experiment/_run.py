@@ -16,9 +16,11 @@ the next method in the same sweep); the ``_run_s`` figures are what the report c
 from __future__ import annotations
 
 import contextlib
+import hashlib
+import json
 import logging
 import time
-from collections.abc import Iterator
+from collections.abc import Iterable, Iterator
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -77,6 +79,9 @@ def run_name(cfg: ExperimentConfig) -> str:
             name += f"__{key}={_option_text(getattr(cfg.placer, key))}"
     if cfg.placer.options:  # e.g. a swept grid offset: each value gets its own run folder
         name += "__o" + ",".join(f"{k}={_option_text(v)}" for k, v in sorted(cfg.placer.options.items()))
+    if cfg.scene.overrides:  # a swept sun or sky too; a hash: cameras would make the name too long
+        text = json.dumps(cfg.scene.overrides, sort_keys=True, default=str)
+        name += "__scene=" + hashlib.sha1(text.encode()).hexdigest()[:8]
     return name
 
 
@@ -95,13 +100,21 @@ def run_dir(cfg: ExperimentConfig) -> Path:
     return Path(cfg.results_dir) / cfg.name / run_name(cfg)
 
 
-def load_experiment_scene(scene_cfg, *, with_translation: bool = False) -> Any:
-    """The configured scene, moved by ``translate_frac`` × extent and rotated about +Y through its centre;
-    with ``with_translation``, also the translation (scene units) as a float64 3-vector."""
-    from .._core import scene_box
-    from ..scene import axis_angle_rotation, load_scene, transform_scene
+def _load_unmoved(scene_cfg, require_light: bool) -> Any:
+    from ..scene import load_scene
 
-    scene = load_scene(scene_cfg.name)
+    overrides = dict(getattr(scene_cfg, "overrides", None) or {}) or None
+    return load_scene(scene_cfg.name, overrides=overrides, require_light=require_light)
+
+
+def load_experiment_scene(scene_cfg, *, with_translation: bool = False, require_light: bool = False) -> Any:
+    """The configured scene (its sidecar and ``overrides`` applied), moved by ``translate_frac`` × extent
+    and rotated about +Y through its centre; with ``with_translation``, also the translation (scene units)
+    as a float64 3-vector. ``require_light``: refuse a scene with no light (``load_scene``'s)."""
+    from .._core import scene_box
+    from ..scene import axis_angle_rotation, transform_scene
+
+    scene = _load_unmoved(scene_cfg, require_light)
     t = np.asarray(scene_cfg.translate_frac, np.float64)
     deg = float(scene_cfg.rotate_deg)
     lo, hi = scene_box(scene)
@@ -254,18 +267,21 @@ def run(cfg: Any, *, force: bool = False) -> RunResult:
         per stage, module docstring).
 
     Raises:
-        ConfigError: invalid or unknown configuration keys (the message names the key), or a
-            ``mitsuba`` backend that cannot load (before any work).
+        ConfigError: invalid or unknown configuration keys (the message names the key), a results
+            folder that cannot be written, or a ``mitsuba`` backend that cannot load (before any work);
+            an ``eval.view`` the scene lacks (after loading the scene, before placing).
+        SceneError: the scene cannot be loaded, or has no light while the run bakes or evaluates.
         EvaluationUnavailable: ``eval.enabled`` without ``probeplace.evaluate``.
     """
+    from .._core._checks import check_writable_folder
+
     cfg = to_config(cfg)
     final = run_dir(cfg)
     if _results.is_complete(final) and not force:
-        import json
-
         _check_same_config(cfg, final)
         log.info("skip %s (finished)", final)
         return RunResult(final, json.loads((final / "metrics.json").read_text()), skipped=True)
+    check_writable_folder(final.parent, "results_dir")  # before the scene is loaded or anything runs
     if cfg.eval.enabled:  # fail before any work, not after the bake
         try:
             from ..evaluate import evaluate  # noqa: F401
@@ -310,7 +326,8 @@ def _execute(cfg: ExperimentConfig, partial: Path, final: Path) -> dict:
         bar.set_postfix_str(name)
 
     t0 = time.perf_counter()
-    scene, translation = load_experiment_scene(cfg.scene, with_translation=True)
+    lit = _needs_light(cfg)
+    scene, translation = load_experiment_scene(cfg.scene, with_translation=True, require_light=lit)
     timings["scene_s"] = time.perf_counter() - t0
     _check_view(cfg, scene)
     stage("place")
@@ -360,6 +377,31 @@ def _check_view(cfg: ExperimentConfig, scene) -> None:
         raise ConfigError(
             f"eval.view: scene {cfg.scene.name!r} has no view {cfg.eval.view!r}; views: {views}"
         )
+
+
+def _needs_light(cfg: ExperimentConfig) -> bool:
+    """A run that bakes or evaluates needs a lit scene (placement alone does not)."""
+    return bool(cfg.bake.enabled or cfg.eval.enabled)
+
+
+def check_scenes(cfgs: Iterable[ExperimentConfig]) -> None:
+    """Check, before any run starts, what only the loaded scene can tell: each scene of ``cfgs`` loads
+    (sidecar and ``scene.overrides`` included; loaded once, unmoved), has light when its run bakes or
+    evaluates, and has the run's ``eval.view``.
+
+    Raises:
+        SceneError: a scene that cannot be loaded, or has no light (the message names the sidecar keys).
+        ConfigError: ``eval.view: scene ... has no view ...; views: [...]``.
+    """
+    import json
+
+    loaded: dict[tuple, Any] = {}
+    for cfg in cfgs:
+        overrides = json.dumps(cfg.scene.overrides, sort_keys=True, default=str)
+        key = (cfg.scene.name, overrides, _needs_light(cfg))
+        if key not in loaded:
+            loaded[key] = _load_unmoved(cfg.scene, key[2])
+        _check_view(cfg, loaded[key])
 
 
 def _placer_budget(cfg: ExperimentConfig, scene) -> int | str:
@@ -562,4 +604,4 @@ def _jsonable(d):
     return str(d)
 
 
-__all__ = ["ConfigError", "EvaluationUnavailable", "RunResult", "run", "run_dir", "run_name"]
+__all__ = ["ConfigError", "EvaluationUnavailable", "RunResult", "check_scenes", "run", "run_dir", "run_name"]

@@ -33,17 +33,23 @@ from ._typed import from_mapping
 
 @dataclass
 class SceneConfig:
-    """Which scene, and a rigid offset of it (stability study: alignment relative to a grid).
+    """Which scene, its light and cameras, and a rigid offset of it (stability study: alignment relative
+    to a grid).
 
     Attributes:
-        name: built-in scene name or a file on the scene search path.
+        name: built-in scene name, a file on the scene search path, or a file's path (its sidecar
+            ``<stem>.probeplace.yaml`` beside it is read, docs/scenes.md "Sidecar config").
         translate_frac: (x, y, z) offset as a fraction of the scene's bounding-box extent per axis.
         rotate_deg: rotation about the vertical (+Y) axis through the bounding-box centre, degrees.
+        overrides: sidecar keys over the file's own sidecar (``load_scene(..., overrides=...)``: ``sun``,
+            ``sky``, ``cameras``, ``emitters``, ``materials``, ``units``, ...), e.g.
+            ``+scene.overrides.sky=daylight``; checked like a sidecar before any run starts.
     """
 
     name: str = "cornell_box"
     translate_frac: list[float] = field(default_factory=lambda: [0.0, 0.0, 0.0])
     rotate_deg: float = 0.0
+    overrides: dict[str, Any] = field(default_factory=dict)
 
 
 @dataclass
@@ -289,6 +295,9 @@ def _check_run(cfg: ExperimentConfig) -> None:
         _fail("scene.translate_frac", "must be three numbers in [-0.5, 0.5]", t)
     if not -180.0 <= float(cfg.scene.rotate_deg) <= 180.0:
         _fail("scene.rotate_deg", "must be in [-180, 180]", cfg.scene.rotate_deg)
+    from ..scene import parse_scene_config
+
+    parse_scene_config(cfg.scene.overrides or None, "scene.overrides")  # the sidecar's own checks
 
 
 def _check_placer(cfg: ExperimentConfig) -> None:

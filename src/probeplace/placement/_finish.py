@@ -59,7 +59,13 @@ class CoverageContext:
 
 def coverage_context(scene: Scene, request: PlaceRequest, sdf) -> CoverageContext:
     """The coverage problem and caster of ``request`` (module docstring, step 3)."""
-    problem = make_problem(scene, key=stream(request.seed, "coverage"), grid=sdf, config=request.config)
+    problem = make_problem(
+        scene,
+        key=stream(request.seed, "coverage"),
+        grid=sdf,
+        config=request.config,
+        reach_clearance=request.clearance,
+    )
     return CoverageContext(problem, search_caster(scene, request.caster))
 
 
@@ -98,8 +104,7 @@ def make_usable(
     the fill before the valid-space lattice. ``valid=False`` (the grid's ``inside="keep"``, kept to show
     the classic failure) skips step 1. Returns (positions, record for the metadata)."""
     pos = np.asarray(pos, np.float32).reshape(-1, 3)
-    clearance, region, reach, lo, hi = valid_settings(scene, request, sdf)
-    reach = reach if valid else None
+    clearance, region, reach, lo, hi = valid_settings(scene, request, sdf, with_reach=valid)
     record: dict = {}
     if valid:
         v = make_valid(sdf, pos, clearance=clearance, region=region, lo=lo, hi=hi, reach=reach)
@@ -128,17 +133,13 @@ def make_usable(
     return fit.pos, record
 
 
-def valid_settings(scene: Scene, request: PlaceRequest, sdf):
-    """What step 1 checks for ``request``: (clearance, region, reachable space or None, lo, hi)."""
+def valid_settings(scene: Scene, request: PlaceRequest, sdf, *, with_reach: bool = True):
+    """What step 1 checks for ``request``: (clearance, region, reachable space or None, lo, hi); the
+    reachable space is not built when ``with_reach`` is false (step 1 skipped)."""
     lo, hi = (np.asarray(v, np.float64) for v in scene_box(scene))
     clearance = default_clearance(scene, sdf) if request.clearance is None else float(request.clearance)
-    return (
-        clearance,
-        Region.from_config(request.region),
-        reachable_space(sdf, clearance, view_positions(scene)),
-        lo,
-        hi,
-    )
+    reach = reachable_space(sdf, clearance, view_positions(scene)) if with_reach else None
+    return clearance, Region.from_config(request.region), reach, lo, hi
 
 
 def usable_count(scene: Scene, request: PlaceRequest, pos, *, sdf) -> int:
@@ -181,7 +182,14 @@ def refine_problem(scene: Scene, request: PlaceRequest, sdf) -> PlacementProblem
     """The refiner's (smaller) problem: ``n_opt_samples`` samples, 16 march steps unless a config is given."""
     config = FitnessConfig(n_steps=16) if request.config is None else request.config
     key = stream(request.seed, "refine-samples")
-    return make_problem(scene, key=key, grid=sdf, n_samples=request.n_opt_samples, config=config)
+    return make_problem(
+        scene,
+        key=key,
+        grid=sdf,
+        n_samples=request.n_opt_samples,
+        config=config,
+        reach_clearance=request.clearance,
+    )
 
 
 def probe_set(pos, method: str) -> ProbeSet:

@@ -283,6 +283,7 @@ def make_problem(
     n_samples: int | None = None,
     config: FitnessConfig | None = None,
     cache_dir=None,
+    reach_clearance: float | None = None,
 ) -> PlacementProblem:
     """Build the fitness model of a scene (host work: SDF build, surface samples, coverable mask).
 
@@ -297,6 +298,9 @@ def make_problem(
         n_samples: see ``samples``.
         config: fitness parameters.
         cache_dir: passed to :func:`probeplace.geometry.build_sdf`.
+        reach_clearance: the probe clearance of the reachable space that witnesses must lie in (the
+            placement request's ``clearance``, so coverable samples and valid probes agree); ``None``:
+            :func:`~._valid.default_clearance`.
 
     Raises:
         ConfigError: ``n_samples`` not positive.
@@ -306,7 +310,9 @@ def make_problem(
         grid = build_sdf(scene) if cache_dir is None else build_sdf(scene, cache_dir=cache_dir)
     # the valid space's reach (_reach; the raw grid, as make_valid reads it): a sample whose only witnesses
     # are sealed off from the views (Sponza's roof tops, vault backs) is not coverable
-    reach = reachable_space(grid, default_clearance(scene, grid), view_positions(scene))
+    if reach_clearance is None:
+        reach_clearance = default_clearance(scene, grid)
+    reach = reachable_space(grid, float(reach_clearance), view_positions(scene))
     grid, _ = tighten_sdf(grid)
     if samples is None:
         spacing = None

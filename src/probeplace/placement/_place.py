@@ -100,8 +100,9 @@ def _place_seeded(
     problem = cov.problem
     cand = timed(timings, "seeds_s", _seed_candidates, problem, seeds)
     reach = valid_settings(scene, r, grid)[2]
-    if reach is not None and reach.contains(cand).any():  # search among probes a viewer can get to
-        cand = cand[reach.contains(cand)]
+    inside_reach = None if reach is None else reach.contains(cand)
+    if inside_reach is not None and inside_reach.any():  # search among probes a viewer can get to
+        cand = cand[inside_reach]
     ref, opt_problem = None, None
     if r.refiner is not None:
         ref = get_refiner(r.refiner, objective=r.objective)

@@ -53,7 +53,7 @@ def no_light_hint(scene_path: str | os.PathLike | None = None) -> str:
     where = sidecar_path(scene_path).name if scene_path is not None else f"<scene>{SIDECAR_SUFFIX}"
     return (
         f"add one with a sidecar {where} beside the scene file (keys: {', '.join(LIGHT_KEYS)}; "
-        "see docs/scenes.md) or the overrides sun= / sky= (CLI --sun / --sky)"
+        "see docs/scenes.md) or the overrides sun= / sky= (CLI --sun / --sky; runner scene.overrides)"
     )
 
 
