@@ -26,8 +26,11 @@ settings as the per-ray hi-Z trace, timed interleaved with it: ``wavefront_vs_re
 ``cornell_*_rays_per_s`` and the per-scene blocks), ``lane_utilisation`` = march steps ÷ executed
 lane-steps of the wavefront (the smaller of the two scenes'; target ≥ 0.6), and per scene the rays
 whose integer fields differ and the largest difference in t (float32 rounding only:
-``wavefront_agreement``). The per-ray engine's time grows faster than the ray count (every vmapped loop
-waits for the batch's slowest ray), so the ratio grows with ``--rays``.
+``wavefront_agreement``). ``sponza_frame_s``: one 160×120 frame of Sponza's first view shaded through the
+8×4×4 grid's probes (diffuse irradiance and 8 glossy rays per pixel on the wavefront engine, evaluate's
+``shade_probes``), compile apart, median of the repeats (``frame_shading``; details in ``sponza_frame``).
+The per-ray engine's time grows faster than the ray count (every vmapped loop waits for the batch's
+slowest ray), so the ratio grows with ``--rays``.
 Last stdout line: one JSON object, also written to benchmarks/results/tracer.json.
 """
 
@@ -240,6 +243,35 @@ def cornell_eval(scene, quick: bool) -> dict:
     return {k: m[k] for k in keep} | {"radiance_res": res, "bake_spp": bake_spp, "bake_s": bake_s}
 
 
+def frame_shading(scene, lf, caster, *, size=(160, 120), glossy_spp=8, repeats=3) -> dict:
+    """Shading of one frame through the probes (``evaluate``'s ``shade_probes``, wavefront engine): diffuse
+    irradiance for every primary sample and ``glossy_spp`` glossy rays per pixel traced and read, the
+    first view, compile apart (its first run) and the median of ``repeats`` runs. The primary hits come
+    from the exact caster beforehand, as in ``evaluate``; ``lf`` is ``bench_scene``'s bake (constant
+    radiance: the time does not depend on the colours)."""
+    from probeplace.evaluate import EvalConfig
+    from probeplace.evaluate._steps import sample_primary, shade_probes
+
+    w, h = size
+    config = EvalConfig(
+        width=w,
+        height=h,
+        glossy_spp=glossy_spp,
+        timing_repeats=repeats,
+        trace=TraceConfig(hierarchy="hiz", engine="wavefront"),
+    )
+    prim = sample_primary(scene, scene.views[0], config, seed=0, caster=caster)
+    shading = shade_probes(scene, lf, prim, config)
+    return {
+        "width": w,
+        "height": h,
+        "glossy_spp": glossy_spp,
+        "glossy_rays": len(prim.glossy_idx),
+        "frame_s": shading.seconds_per_frame,
+        "compile_s": shading.compile_seconds,
+    }
+
+
 def gpu_figures(scene, repeats: int) -> dict:
     """1920×1080 rays on the GPU: light-field trace time and glossy-indirect frame time (trace + read)."""
     from probeplace.probes import glossy_radiance
@@ -304,10 +336,15 @@ def main(argv=None) -> dict:
         result["sponza_lf_rays_per_s"] = None
         result["sponza_wavefront_rays_per_s"] = None
         result["wavefront_vs_reference_sponza"] = None
+        result["sponza_frame_s"] = None
         result["sponza_note"] = f"crytek_sponza not loaded: {e}"
     else:
-        sponza, _ = bench_scene(sponza_scene, (8, 4, 4), 64, args.rays, args.repeats)
+        sponza, sponza_lf = bench_scene(sponza_scene, (8, 4, 4), 64, args.rays, args.repeats)
         result["sponza"] = sponza
+        frame = frame_shading(sponza_scene, sponza_lf, EmbreeCaster(sponza_scene), repeats=args.repeats)
+        result["sponza_frame"] = frame
+        result["sponza_frame_s"] = frame["frame_s"]
+        del sponza_lf
         result["sponza_lf_rays_per_s"] = sponza["lf_rays_per_s"]
         result["sponza_lf_vs_embree_1t"] = sponza["lf_rays_per_s"] / sponza["embree_1t_rays_per_s"]
         result["sponza_hiz_vs_two_level_steps"] = sponza["steps_hiz"] / sponza["steps_two_level"]
