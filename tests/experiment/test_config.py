@@ -163,6 +163,13 @@ def test_run_name_is_unique_per_swept_coordinate():
     offsets = [[0.0, 0.0, 0.0], [0.25, 0.0, 0.5]]
     swept = {run_name(to_config({"placer": {**grid, "options": {"offset": o}}})) for o in offsets}
     assert len(swept) == 2 and run_name(to_config({"placer": grid})) not in swept
+    # a swept refiner objective too (the default keeps the name it always had)
+    refined = {"placer": {"method": "skeleton", "objective": "coverage"}, "refiner": {"name": "lbfgsb"}}
+    objectives = {
+        run_name(to_config({**refined, "placer": {**refined["placer"], "objective": o}}))
+        for o in ("coverage", "wang", "shading")
+    }
+    assert len(objectives) == 3 and run_name(to_config(refined)) in objectives
 
 
 def test_scene_offset_moves_the_scene_relative_to_the_grid():

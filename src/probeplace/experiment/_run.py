@@ -77,6 +77,8 @@ def run_name(cfg: ExperimentConfig) -> str:
     for key in ("clearance", "region"):  # each value gets its own run folder, as the options below
         if getattr(cfg.placer, key) is not None:
             name += f"__{key}={_option_text(getattr(cfg.placer, key))}"
+    if cfg.placer.objective != "coverage":  # the refiner's objective (the default keeps older names)
+        name += f"__objective={cfg.placer.objective}"
     if cfg.placer.options:  # e.g. a swept grid offset: each value gets its own run folder
         name += "__o" + ",".join(f"{k}={_option_text(v)}" for k, v in sorted(cfg.placer.options.items()))
     if cfg.scene.overrides:  # a swept sun or sky too; a hash: cameras would make the name too long
