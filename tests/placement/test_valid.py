@@ -15,7 +15,8 @@ import pytest
 from probeplace._core import ConfigError
 from probeplace.geometry import SDFGrid, build_sdf, lookup_sdf
 from probeplace.placement import _uniform, _valid
-from probeplace.placement._valid import Region, default_clearance, make_valid, valid_candidates
+from probeplace.placement._region import Region
+from probeplace.placement._valid import default_clearance, make_valid, valid_candidates
 
 # Hand-made scene: the unit box [0, 1]³ (placement box) holding one solid box.
 LO, HI = np.zeros(3), np.ones(3)

@@ -3,20 +3,20 @@ automatic budget, and ``place``. See docs/placement.md."""
 
 from ._auto import AutoResult as AutoResult
 from ._auto import auto_budget as auto_budget
+from ._binary import binary_coverage as binary_coverage
+from ._binary import binary_visibility as binary_visibility
+from ._binary import wang_fitness_binary as wang_fitness_binary
 from ._budget import count_for_memory as count_for_memory
 from ._budget import parse_bytes as parse_bytes
 from ._field import tighten_sdf as tighten_sdf
 from ._fitness import FitnessConfig as FitnessConfig
 from ._fitness import PlacementProblem as PlacementProblem
-from ._fitness import binary_coverage as binary_coverage
-from ._fitness import binary_visibility as binary_visibility
 from ._fitness import coverage_objective as coverage_objective
 from ._fitness import make_problem as make_problem
 from ._fitness import probe_clearance as probe_clearance
 from ._fitness import probe_column as probe_column
 from ._fitness import shading_objective as shading_objective
 from ._fitness import wang_fitness as wang_fitness
-from ._fitness import wang_fitness_binary as wang_fitness_binary
 from ._fitness import witness_positions as witness_positions
 from ._grid import grid_dims as grid_dims
 from ._grid import uniform_grid as uniform_grid
@@ -31,6 +31,7 @@ from ._refine import RefineResult as RefineResult
 from ._refine import get_refiner as get_refiner
 from ._refine import objective_fn as objective_fn
 from ._refine import stochastic_direction as stochastic_direction
+from ._region import Region as Region
 from ._registry import PlacementMethod as PlacementMethod
 from ._registry import PlaceRequest as PlaceRequest
 from ._registry import PlaceResult as PlaceResult
@@ -42,7 +43,6 @@ from ._registry import register_method as register_method
 from ._seeds import medial_axis_seeds as medial_axis_seeds
 from ._seeds import shrink_balls as shrink_balls
 from ._seeds import skeleton_seeds as skeleton_seeds
-from ._valid import Region as Region
 from ._valid import ValidSpace as ValidSpace
 from ._valid import default_clearance as default_clearance
 from ._valid import make_valid as make_valid

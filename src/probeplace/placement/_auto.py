@@ -41,7 +41,8 @@ import jax.numpy as jnp
 import numpy as np
 
 from .._core import ConfigError, host_rng
-from ._fitness import PlacementProblem, binary_visibility, probe_clearance, witness_positions
+from ._binary import binary_visibility
+from ._fitness import PlacementProblem, probe_clearance, witness_positions
 from ._refine import AbstractRefiner
 from ._seeds import medial_axis_seeds, skeleton_seeds
 

@@ -23,12 +23,14 @@ import numpy as np
 
 from .._core import ConfigError, ProbeSet, Scene, scene_box, stream
 from ..geometry import AbstractRayCaster
+from ._binary import binary_coverage, binary_visibility
 from ._budget import fit_to_budget
-from ._fitness import FitnessConfig, PlacementProblem, binary_coverage, binary_visibility, make_problem
+from ._fitness import FitnessConfig, PlacementProblem, make_problem
 from ._reach import reachable_space, view_positions
 from ._refine import get_refiner
+from ._region import Region
 from ._registry import PlaceRequest, PlaceResult
-from ._valid import Region, default_clearance, make_valid, valid_candidates
+from ._valid import default_clearance, make_valid, valid_candidates
 
 
 @dataclass(frozen=True, eq=False)

@@ -17,8 +17,9 @@ import numpy as np
 from .._core import Scene, load_pyplot, stream
 from ..geometry import AbstractRayCaster, build_sdf
 from ._auto import auto_budget
+from ._binary import binary_coverage, binary_visibility
 from ._finish import coverage_context, make_usable, probe_set, refine_problem, valid_settings
-from ._fitness import FitnessConfig, binary_coverage, binary_visibility, probe_clearance
+from ._fitness import FitnessConfig, probe_clearance
 from ._grid import grid_dims, uniform_grid
 from ._refine import get_refiner
 from ._registry import PlacementMethod, PlaceRequest, PlaceResult, get_method, register_method
@@ -70,7 +71,7 @@ def place(
             must be empty for a method without options.
         clearance: smallest free distance from probes to geometry (``None``: from the scene's size);
             probes nearer are relocated along the SDF gradient, else dropped (``_valid``).
-        region: where probes may go: ``{"boxes": [[lo, hi], ...], "height": [a, b]}`` (``_valid.Region``).
+        region: where probes may go: ``{"boxes": [[lo, hi], ...], "height": [a, b]}`` (``_region.Region``).
 
     Returns:
         :class:`PlaceResult`: the probes, coverage, timings, refinement status and the method's record

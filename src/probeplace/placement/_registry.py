@@ -33,7 +33,7 @@ class PlaceRequest:
             object (any ``geometry.AbstractRayCaster``, used as given).
         clearance: smallest free distance from a probe to geometry, scene units; ``None``: derived from
             the scene (``_valid.default_clearance``). Probes nearer are relocated, else dropped.
-        region: where probes may go (``_valid.Region.from_config``: ``{"boxes": [...], "height": [a, b]}``);
+        region: where probes may go (``_region.Region.from_config``: ``{"boxes": [...], "height": [a, b]}``);
             ``None``: the whole scene box.
     """
 
@@ -67,7 +67,7 @@ class PlaceRequest:
         c = self.clearance
         if c is not None and (isinstance(c, bool) or not isinstance(c, (int, float)) or not c >= 0):
             raise ConfigError(f"clearance must be a non-negative distance (scene units) or None, got {c!r}")
-        from ._valid import Region
+        from ._region import Region
 
         Region.from_config(self.region)  # its errors name the bad key, before any work
 
