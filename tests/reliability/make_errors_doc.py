@@ -73,7 +73,12 @@ TAIL = """
 mesh extension, a truncated GLB (header and body), files without triangles (OBJ, GLB, PLY point cloud),
 NaN/inf vertices (OBJ and GLB), degenerate triangles (dropped and counted: *dropped N degenerate
 (zero-area) triangles of M*; all degenerate: an error), bad MTL numbers (file and line), negative
-emission, a glTF 1.0 document, an unknown scene name (the search path is listed). `tests/probes/test_bake.py`:
+emission, a glTF 1.0 document, an unknown scene name (the search path is listed).
+`tests/scene/test_sidecar_errors.py`: a scene's `<name>.probeplace.yaml` sidecar, and the same keys given
+as `--sun` / `--sky` / `--camera` flags or the runner's `scene.overrides` — every bad value, unit, axis,
+material, part or emitter is one line naming the file (or the flag / override layer) and the key path
+(`room.probeplace.yaml: emitters.lampp: no material of that name; materials: ...`), invalid YAML names its
+line, and a camera looking along its up vector is refused. `tests/probes/test_bake.py`:
 bad `BakeConfig` values and NaN probe positions. `tests/placement`, `tests/export`, `tests/experiment`:
 their own options, files and formats. `tests/test_cli_checks.py`, `tests/test_runner_cli.py`: every
 `place` / `evaluate` / `export` option and every runner key is checked before any placement, bake or
