@@ -12,7 +12,7 @@ import jax.numpy as jnp
 import numpy as np
 import pytest
 
-from probeplace.placement import FitnessConfig, _refine, _uniform, _vardis, wang_fitness
+from probeplace.placement import FitnessConfig, _refine, _valid, _vardis, wang_fitness
 from probeplace.placement._refine import GibbsRefiner
 
 
@@ -83,10 +83,10 @@ def test_relocation_compiles_once(small):
     rng = np.random.default_rng(0)
     pts = [(lo + (hi - lo) * rng.uniform(0.05, 0.95, (16, 3))).astype(np.float32) for _ in range(2)]
     h = float(sdf.voxel_size)
-    _uniform._relocate(sdf, pts[0], 2.0 * h, 16, lo, hi)
-    n = _n_traces(_uniform._relocate_points)
-    q, ok = _uniform._relocate(sdf, pts[1], 3.0 * h, 16, lo, hi)
-    assert _n_traces(_uniform._relocate_points) == n
+    _valid._relocate(sdf, pts[0], 2.0 * h, 16, lo, hi)
+    n = _n_traces(_valid._relocate_points)
+    q, ok = _valid._relocate(sdf, pts[1], 3.0 * h, 16, lo, hi)
+    assert _n_traces(_valid._relocate_points) == n
     assert q.dtype == np.float32 and ok.dtype == bool
     # every relocated point that reports success is clear of the new clearance
     from probeplace.geometry import lookup_sdf

@@ -260,7 +260,7 @@ def test_valid_candidates(sdf):
 
 # ------------------------------------------------------------------------------------ uniform grid
 def test_uniform_relocation_is_the_shared_one(sdf):
-    assert _uniform._relocate is _valid._relocate and _uniform._relocate_points is _valid._relocate_points
+    assert _uniform._relocate is _valid._relocate
     r = _uniform.uniform_probe_grid(bounds=(LO, HI), dims=(5, 5, 5), inside="relocate", sdf=sdf)
     assert r.n_inside > 0 and r.n_relocated == r.n_inside and r.n_failed == 0
     assert np.all(lookup_sdf(sdf, np.asarray(r.probes.pos_world)[r.relocated]) > H)

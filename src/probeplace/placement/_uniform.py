@@ -34,11 +34,8 @@ from .._core import ConfigError, ProbeSet, Scene, scene_box
 from ..geometry import SDFGrid, build_sdf, lookup_sdf
 from ._grid import grid_dims, uniform_grid
 
-# The relocation lives with the rest of valid-space handling (docs/placement.md "Valid space"); re-exported
-# here for the grid below and for the modules and tests that import it from this one.
-from ._valid import _fibonacci_directions as _fibonacci_directions
-from ._valid import _relocate as _relocate
-from ._valid import _relocate_points as _relocate_points
+# The relocation lives with the rest of valid-space handling (docs/placement.md "Valid space").
+from ._valid import _relocate
 
 INSIDE_CHOICES = ("keep", "disable", "relocate")
 

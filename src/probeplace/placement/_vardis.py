@@ -43,7 +43,7 @@ from jaxtyping import Array, Float
 from .._core import ConfigError, Scene, next_pow2, scene_box
 from .._core._sh import sh_basis
 from ._tetra import RemovalPlan, TetMesh
-from ._uniform import _fibonacci_directions
+from ._valid import _fibonacci_directions
 
 ERROR_MODES = ("sh", "directions", "average")
 # (w_Y, w_C) presets of Vardis et al. 2021 §2.
