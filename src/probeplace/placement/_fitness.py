@@ -11,7 +11,8 @@ share 4π sr) and h the SDF voxel (the tracer's own resolution). A sample must a
 (−ω·n > 0: a probe behind a one-sided wall sees its back, which is another atlas texel in Wang's
 setting); ``two_sided`` drops that test. A probe inside a solid sees nothing.
 
-* binary V (``_binary``): the SDF sphere tracer (:func:`probeplace.geometry.trace_sdf_rays`) or a caster;
+* binary V (``_binary``): the SDF sphere tracer (:func:`probeplace.geometry.trace_sdf_rays`) or an exact
+  caster;
 * soft V: the minimum-clearance soft visibility of :func:`probeplace.geometry.soft_visibility`
   (σ((minᵢ cᵢ − τ)/s), cᵢ = (f(tᵢ) + f(tᵢ₊₁) − Δᵢ)/2 a Lipschitz lower bound of the clearance of each
   interval), evaluated here on the segment from the probe to the sample *lifted* by ε = τ + 3s along its
