@@ -48,13 +48,11 @@ def probe_json(path: Path, pos=POS, active=None) -> Path:
 
 
 def refused(argv: list[str], capsys, *needles: str) -> str:
-    """Run ``probeplace argv`` in-process: exit 2 within 5 s, one line naming the problem."""
-    t0 = time.perf_counter()
+    """Run ``probeplace argv`` in-process: exit 2, one line naming the problem. (That refusals come
+    before any slow work is checked without a clock, in a fresh interpreter, below.)"""
     code = main(argv)
-    seconds = time.perf_counter() - t0
     err = capsys.readouterr().err
     assert code == 2, err
-    assert seconds < 5.0, f"refused after {seconds:.1f} s"
     lines = err.strip().splitlines()
     assert len(lines) == 1 and lines[0].startswith("probeplace: error: "), err
     for n in needles:
@@ -195,34 +193,36 @@ def test_interrupt_leaves_no_output(tmp_path, capsys, monkeypatch):
 DEFAULT_SIGINT = "import signal; signal.signal(signal.SIGINT, signal.default_int_handler); import runpy; "
 
 
-def _python(*args: str) -> subprocess.Popen:
-    """``python -m probeplace args`` as a user runs it."""
+def _python(*args: str, env: dict[str, str] | None = None) -> subprocess.Popen:
+    """``python -m probeplace args`` as a user runs it (``env`` adds to the environment)."""
     code = DEFAULT_SIGINT + "runpy.run_module('probeplace', run_name='__main__', alter_sys=True)"
-    env = {**os.environ, "PYTHONUNBUFFERED": "1"}
+    env = {**os.environ, "PYTHONUNBUFFERED": "1", **(env or {})}
     return subprocess.Popen([sys.executable, "-c", code, *args], cwd=ROOT, env=env,
                             stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)  # fmt: skip
 
 
-def test_command_line_refusal_is_fast_and_one_line(tmp_path):
-    """As a user runs it, in a fresh interpreter: one line, status 2, and no slower than ``--version``
-    (the interpreter and its imports, ~3 s on 2 busy cores, are not the check's) by more than 2 s."""
+def test_command_line_refusal_comes_before_any_jax_work_and_is_one_line(tmp_path):
+    """As a user runs it, in a fresh interpreter: one line, status 2, and nothing compiled first.
 
-    def timed(*argv):
-        t0 = time.perf_counter()
-        proc = _python(*argv)
-        _, err = proc.communicate(timeout=120)
-        return proc.returncode, err, time.perf_counter() - t0
-
+    With ``JAX_LOG_COMPILES`` every jit compilation writes a line to stderr, so a refusal that came
+    after a scene load or a bake would not be one line. (Not a timed test: wall time on a shared
+    2-core machine is noise; the compile log is an invariant.)"""
     probes = probe_json(tmp_path / "p.json")
-    rc, err, seconds = timed("evaluate", "--scene", "cornell_box", "--probes", str(probes), "--width", "0")
-    assert rc == 2, err
-    lines = err.strip().splitlines()
-    assert (
-        len(lines) == 1
-        and lines[0] == "probeplace: error: --width: EvalConfig.width must be a positive int, got 0"
-    ), err
-    rc, _, baseline = timed("--version")
-    assert rc == 0 and seconds - baseline < 2.0, f"refused after {seconds:.1f} s, --version {baseline:.1f} s"
+    argv = ("evaluate", "--scene", "cornell_box", "--probes", str(probes), "--width", "0")
+    proc = _python(*argv, env={"JAX_LOG_COMPILES": "1"})
+    _, err = proc.communicate(timeout=120)
+    assert proc.returncode == 2, err
+    assert err.strip().splitlines() == [
+        "probeplace: error: --width: EvalConfig.width must be a positive int, got 0"
+    ], err
+
+
+def test_compile_log_reaches_stderr_in_a_child():
+    """The oracle the test above leans on: a child that does jit work does log it under the flag."""
+    code = "import jax, jax.numpy as jnp; jax.jit(lambda x: x + 1)(jnp.ones(3))"
+    env = {**os.environ, "JAX_LOG_COMPILES": "1"}
+    proc = subprocess.run([sys.executable, "-c", code], env=env, capture_output=True, text=True, timeout=120)
+    assert proc.returncode == 0 and "Compiling" in proc.stderr, proc.stderr
 
 
 def test_ctrl_c_during_place(tmp_path):

@@ -31,17 +31,15 @@ def runner():
 
 @pytest.fixture
 def precheck(runner, capsys):
-    """``_precheck(argv)`` → its one error line (it must exit 2 within 5 s), or None when it passes."""
+    """``_precheck(argv)`` → its one error line (it must exit 2), or None when it passes."""
     from hydra.core.global_hydra import GlobalHydra
 
     def call(argv: list[str]) -> str | None:
         GlobalHydra.instance().clear()  # other tests of this process may leave Hydra initialised
-        t0 = time.perf_counter()
         try:
             runner._precheck(argv)
         except SystemExit as e:
-            seconds = time.perf_counter() - t0
-            assert e.code == 2 and seconds < 5.0, (e.code, seconds)
+            assert e.code == 2, e.code
             lines = capsys.readouterr().err.strip().splitlines()
             assert len(lines) == 1 and lines[0].startswith("probeplace: error: "), lines
             return lines[0]

@@ -12,7 +12,6 @@ import importlib.util
 import os
 import subprocess
 import sys
-import time
 
 import pytest
 
@@ -64,8 +63,6 @@ def test_ray_launcher_local_instance(tmp_path):
     _need("hydra_plugins.hydra_ray_launcher", RAY_SETUP)
     # address=null: the launcher calls ray.init(**init) and starts a local Ray instance for the sweep
     init = ["+hydra.launcher.ray.init.num_cpus=2", "+hydra.launcher.ray.init.include_dashboard=false"]
-    t0 = time.perf_counter()
     proc = _run_sweep(tmp_path, ["hydra/launcher=ray", *init], timeout=300)
     _check(tmp_path, proc)
     assert "Started a local Ray instance" in proc.stdout + proc.stderr
-    assert time.perf_counter() - t0 < 300

@@ -5,8 +5,6 @@ and refuses a scene without light for a bake, or an ``eval.view`` it lacks, befo
 
 from __future__ import annotations
 
-import time
-
 import numpy as np
 import pytest
 
@@ -98,10 +96,8 @@ def test_run_refuses_an_unwritable_results_folder_before_loading_the_scene(tmp_p
     monkeypatch.setattr(run_mod, "_load_unmoved", never)
     blocker = tmp_path / "file"
     blocker.write_text("x")
-    t0 = time.perf_counter()
     with pytest.raises(
         ConfigError, match=r"^results_dir: cannot create .*/file/results/default: .*/file is a file"
     ):
         run({"results_dir": str(blocker / "results"), "eval": {"enabled": False}})
-    assert time.perf_counter() - t0 < 5.0
     assert sorted(p.name for p in tmp_path.iterdir()) == ["file"]

@@ -2,8 +2,6 @@
 
 from __future__ import annotations
 
-import time
-
 import igl
 import jax
 import jax.numpy as jnp
@@ -27,17 +25,14 @@ def sponza():
 
 @pytest.fixture(scope="module")
 def sponza_sdf(sponza):
-    t = time.perf_counter()
-    grid = build_sdf(sponza, cache_dir=False)
-    return grid, time.perf_counter() - t
+    return build_sdf(sponza, cache_dir=False)
 
 
 def test_sponza_build(sponza, sponza_sdf):
-    grid, seconds = sponza_sdf
+    grid = sponza_sdf
     assert float(grid.voxel_size) == pytest.approx(default_voxel_size(sponza), rel=1e-6)  # float32 leaf
-    # Measured 6-8 s on the 2-core reference machine including XLA compilation (docs/sdf.md); the limit
-    # leaves room for a loaded machine.
-    assert seconds < 30.0
+    # Its build time (6-8 s on the 2-core reference machine, docs/sdf.md) is a benchmark figure:
+    # benchmarks/raycast.py's sponza_sdf_build_s.
     v = np.asarray(sponza.vertices, np.float64)
     f = np.asarray(sponza.faces, np.int64)
     vals = np.asarray(grid.values, np.float64).reshape(-1)
@@ -53,7 +48,7 @@ def test_sponza_hits_agree_with_embree(sponza, sponza_sdf):
     from embreex import rtcore_scene
     from embreex.mesh_construction import TriangleMesh
 
-    grid, _ = sponza_sdf
+    grid = sponza_sdf
     h = float(grid.voxel_size)
     v = np.asarray(sponza.vertices, np.float64)
     f = np.asarray(sponza.faces, np.int64)
