@@ -55,3 +55,29 @@ def cornell():
     from probeplace.scene import cornell_box
 
     return cornell_box()
+
+
+@pytest.fixture
+def no_slow_work(monkeypatch):
+    """The slow stages — SDF and caster builds, placement, bake, evaluation — fail the test if a
+    command reaches them: a refusal must come before any of them (a clock-free invariant; wall time
+    on a shared machine is noise). The commands import these lazily from their packages, so patching
+    the package attribute reaches them."""
+    import probeplace.evaluate
+    import probeplace.geometry
+    import probeplace.placement
+    import probeplace.probes
+    import probeplace.render
+
+    def boom(*a, **k):
+        raise AssertionError("the command started slow work before refusing its input")
+
+    for module, name in (
+        (probeplace.geometry, "build_sdf"),
+        (probeplace.geometry, "make_caster"),
+        (probeplace.render, "default_caster"),
+        (probeplace.placement, "place"),
+        (probeplace.probes, "bake_probes"),
+        (probeplace.evaluate, "evaluate"),
+    ):
+        monkeypatch.setattr(module, name, boom)

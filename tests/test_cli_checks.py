@@ -21,21 +21,6 @@ ROOT = Path(__file__).resolve().parents[1]
 POS = [[150.0, 250.0, 150.0], [400.0, 250.0, 400.0]]  # free space in the Cornell box
 
 
-@pytest.fixture
-def no_work(monkeypatch):
-    """Placement, bake and evaluation that fail the test if the command reaches them."""
-    import probeplace.evaluate
-    import probeplace.placement
-    import probeplace.probes
-
-    def boom(*a, **k):
-        raise AssertionError("the command started slow work before refusing its input")
-
-    monkeypatch.setattr(probeplace.placement, "place", boom)
-    monkeypatch.setattr(probeplace.probes, "bake_probes", boom)
-    monkeypatch.setattr(probeplace.evaluate, "evaluate", boom)
-
-
 def probe_json(path: Path, pos=POS, active=None) -> Path:
     doc = {
         "format": "probeplace.ProbeSet/1",
@@ -49,7 +34,8 @@ def probe_json(path: Path, pos=POS, active=None) -> Path:
 
 def refused(argv: list[str], capsys, *needles: str) -> str:
     """Run ``probeplace argv`` in-process: exit 2, one line naming the problem. (That refusals come
-    before any slow work is checked without a clock, in a fresh interpreter, below.)"""
+    before any slow work is checked without a clock: the ``no_slow_work`` fixture, and the compile log
+    of a fresh interpreter below.)"""
     code = main(argv)
     err = capsys.readouterr().err
     assert code == 2, err
@@ -86,19 +72,19 @@ def _eval(tmp_path, *extra) -> list[str]:
     ],
     ids=["view", "width", "spp", "glossy-spp", "memory", "bake-spp", "radiance-res"],
 )
-def test_evaluate_refuses_before_any_bake(tmp_path, capsys, no_work, extra, needles):
+def test_evaluate_refuses_before_any_bake(tmp_path, capsys, no_slow_work, extra, needles):
     refused(_eval(tmp_path, *extra), capsys, *needles)
     assert not (tmp_path / "ev").exists()
 
 
-def test_evaluate_outputs_must_be_writable(tmp_path, capsys, no_work, blocker):
+def test_evaluate_outputs_must_be_writable(tmp_path, capsys, no_slow_work, blocker):
     refused(_eval(tmp_path, "--out", str(blocker / "ev")), capsys, "--out", "is a file, not a folder")
     save = ["--save-baked", str(blocker / "b.npz")]
     refused(_eval(tmp_path, *save), capsys, "--save-baked", "is a file, not a folder")
     refused(_eval(tmp_path, "--save-baked", str(tmp_path)), capsys, "--save-baked must name a .npz")
 
 
-def test_evaluate_refuses_empty_probe_sets_and_text_npz(tmp_path, capsys, no_work):
+def test_evaluate_refuses_empty_probe_sets_and_text_npz(tmp_path, capsys, no_slow_work):
     empty = probe_json(tmp_path / "e.json", pos=[])
     argv = ["evaluate", "--scene", "cornell_box", "--out", str(tmp_path / "ev")]
     refused([*argv, "--probes", str(empty)], capsys, "no active probes")
@@ -121,12 +107,12 @@ def test_evaluate_refuses_empty_probe_sets_and_text_npz(tmp_path, capsys, no_wor
     ],
     ids=["option", "both-budgets", "radiance-res", "target", "refiner"],
 )
-def test_place_refuses_before_placing(tmp_path, capsys, no_work, extra, needles):
+def test_place_refuses_before_placing(tmp_path, capsys, no_slow_work, extra, needles):
     refused(["place", "cornell_box", "--out", str(tmp_path / "p.json"), *extra], capsys, *needles)
     assert not any(tmp_path.iterdir())
 
 
-def test_place_output_must_be_writable(tmp_path, capsys, no_work, blocker):
+def test_place_output_must_be_writable(tmp_path, capsys, no_slow_work, blocker):
     refused(["place", "cornell_box", "--out", str(blocker / "p.json")], capsys, "--out", "is a file")
     refused(["place", "cornell_box", "--out", str(tmp_path)], capsys, "--out", "is a folder")
     png = ["--png", str(blocker / "p.png")]
@@ -137,7 +123,7 @@ def test_place_output_must_be_writable(tmp_path, capsys, no_work, blocker):
 @pytest.mark.skipif(
     os.geteuid() == 0, reason="root ignores file permissions (the parent-is-a-file tests hold)"
 )
-def test_read_only_folder_is_refused(tmp_path, capsys, no_work):
+def test_read_only_folder_is_refused(tmp_path, capsys, no_slow_work):
     ro = tmp_path / "ro"
     ro.mkdir()
     ro.chmod(0o555)

@@ -30,7 +30,7 @@ def runner():
 
 
 @pytest.fixture
-def precheck(runner, capsys):
+def precheck(runner, capsys, no_slow_work):
     """``_precheck(argv)`` → its one error line (it must exit 2), or None when it passes."""
     from hydra.core.global_hydra import GlobalHydra
 
