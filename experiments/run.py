@@ -7,7 +7,9 @@
     python experiments/run.py --multirun method=grid,skeleton hydra/launcher=ray   # local Ray instance
 
 Every run goes to ``results/<experiment>/<run>/`` (written atomically); a re-run of a sweep skips the
-finished runs and redoes an interrupted one. The work itself is ``probeplace.experiment.run``.
+finished runs that ran with the same config and inputs, refuses those whose config or inputs changed
+(``redo=stale`` redoes them, ``redo=all`` every run) and redoes an interrupted one. The work itself is
+``probeplace.experiment.run``.
 
 This file is the only place Hydra and OmegaConf meet the library: it stores the schema
 (``probeplace.experiment.ExperimentConfig``) in Hydra's ConfigStore as ``base_config`` (configs/config.yaml
@@ -20,7 +22,10 @@ once) and validates it: an unknown key, a bad value, Hydra's own errors (a missp
 missing option), a bake or image too large for memory and an unwritable results folder are one line
 ``probeplace: error: ...`` and exit status 2, like the ``probeplace`` command's. It then loads each scene
 once (``probeplace.experiment.check_scenes``): a scene that cannot be loaded, one with no light for a run
-that bakes, and an ``eval.view`` the scene lacks are refused the same way, before any run starts.
+that bakes, and an ``eval.view`` the scene lacks are refused the same way, before any run starts; so is a
+finished run whose config or inputs (scene file hash, resolved sidecar, code version) differ from the
+command's (``check_finished``; ``redo=stale`` redoes it instead). ``scene=<file>`` (a config option that
+does not exist) is answered with the ``scene.name=<file>`` form.
 Ctrl-C is one line ``probeplace: interrupted`` and status 130 (the interrupted run's partial folder is
 removed).
 """
@@ -30,6 +35,7 @@ from __future__ import annotations
 import contextlib
 import io
 import os
+import re
 import signal
 import sys
 from pathlib import Path
@@ -141,6 +147,7 @@ def _precheck(argv: list[str]) -> None:
 
     from probeplace._core._checks import check_writable_folder
     from probeplace.experiment import check_scenes, to_config
+    from probeplace.experiment._run import check_finished
 
     try:
         with contextlib.redirect_stdout(io.StringIO()), contextlib.redirect_stderr(io.StringIO()):
@@ -164,10 +171,24 @@ def _precheck(argv: list[str]) -> None:
                 cfgs.append(cfg)
         # each scene loaded once: light for a bake, the eval.view of every run (before the first starts)
         check_scenes(cfgs)
+        # a finished run met again with other inputs (a changed sidecar sun, scene file or code version)
+        check_finished(cfgs)
     except (HydraException, OmegaConfBaseException) as e:
-        _fail(_one_line(e))
+        _fail(_scene_hint(_one_line(e)))
     except ProbeplaceError as e:
         _fail(str(e))
+
+
+def _scene_hint(message: str) -> str:
+    """Hydra's "Could not find 'scene/<name>'" with the form a scene file takes: ``scene=`` picks a
+    config option (configs/scene/), while a scene file or a scene on the search path is ``scene.name=``."""
+    m = re.search(r"Could not find 'scene/(.+?)'", message)
+    if m is None:
+        return message
+    return (
+        f"{message.rstrip('. ')}; scene=<option> picks one of configs/scene/: a scene file, or a scene "
+        f"on the search path, is given as scene.name={m.group(1)} (docs/scenes.md)"
+    )
 
 
 if __name__ == "__main__":

@@ -11,7 +11,12 @@ from ._core import ProbeplaceError
 
 
 def _cmd_scenes(args: argparse.Namespace) -> int:
-    """One line per scene; a file named like a built-in is marked: the name loads the built-in."""
+    """One line per scene; a file named like a built-in is marked: the name loads the built-in. With a
+    scene name or file: what it resolved to (:func:`_show_scene`)."""
+    if args.name is not None:
+        return _show_scene(args)
+    if args.sun is not None or args.sky is not None or args.camera:
+        raise ProbeplaceError("--sun, --sky and --camera need a scene: probeplace scenes NAME --sun ...")
     from .scene import list_scenes
 
     entries = list_scenes()
@@ -21,6 +26,75 @@ def _cmd_scenes(args: argparse.Namespace) -> int:
         if entry.kind == "file" and entry.name in builtin:
             note = "  (shadowed: the name loads the built-in; load this file by its path)"
         print(f"{entry.name:<24} {entry.kind:<9} {entry.source}{note}")
+    return 0
+
+
+def _show_scene(args: argparse.Namespace) -> int:
+    """Load one scene (its sidecar, KNOWN_SCENES and --sun/--sky/--camera applied) and print what it
+    resolved to: where it came from, units, bounds, triangles, sun, sky, emitters, cameras. Loading a scene
+    imports JAX (a Scene is an Equinox module); nothing is compiled."""
+    from pathlib import Path
+
+    from .scene import (
+        BUILTIN_SCENES,
+        find_scene_file,
+        load_scene,
+        scene_config_layers,
+        scene_overrides_from_args,
+    )
+    from .scene._load import _looks_like_path
+    from .scene._summary import scene_summary
+
+    overrides = scene_overrides_from_args(args)  # checked before the scene is read
+    scene = load_scene(args.name, overrides=overrides or None)
+    s = scene_summary(scene)
+    path = Path(args.name) if _looks_like_path(args.name) else None
+    if path is None and args.name not in BUILTIN_SCENES:
+        path = find_scene_file(args.name)
+
+    def vec(v) -> str:  # float32 noise below 1e-9 of the vector's size printed as 0
+        big = max((abs(x) for x in v), default=0.0)
+        return "(" + ", ".join(f"{x if abs(x) > 1e-9 * big else 0.0:.6g}" for x in v) + ")"
+
+    lines = [("scene", f"{s['name']} ({'built-in' if path is None else path})")]
+    if path is not None:
+        layers = [layer.source for layer in scene_config_layers(path, overrides or None)]
+        lines.append(("config", " < ".join(layers) if layers else "none (the file alone)"))
+    elif overrides:
+        lines.append(("config", "overrides"))
+    lo, hi = s["bounds"]
+    lines += [
+        ("units", f"{s['unit_m']:g} m per unit"),
+        ("bounds", f"{vec(lo)} .. {vec(hi)}, size {vec([b - a for a, b in zip(lo, hi, strict=True)])}"),
+        ("triangles", str(s["triangles"])),
+    ]
+    sun = s["sun"]
+    if sun is None:
+        lines.append(("sun", "none"))
+    else:
+        lines.append(
+            (
+                "sun",
+                f"direction {vec(sun['direction'])} (azimuth {sun['azimuth_deg']:.6g}°, elevation "
+                f"{sun['elevation_deg']:.6g}°), irradiance {vec(sun['irradiance'])}, radiance "
+                f"{vec(sun['radiance'])}, angular diameter {sun['angular_diameter_deg']:.6g}°",
+            )
+        )
+    lines.append(("sky", "none" if s["sky"] is None else f"radiance {vec(s['sky'])}"))
+    if not s["emitters"]:
+        lines.append(("emitters", "none"))
+    for name, e in s["emitters"].items():
+        lines.append(("emitter", f"{name}: radiance {vec(e['radiance'])}, {e['triangles']} triangles"))
+    for name, c in s["cameras"].items():
+        lines.append(
+            (
+                "camera",
+                f"{name}: position {vec(c['position'])}, look_at {vec(c['look_at'])}, up {vec(c['up'])}, "
+                f"fov {c['fov_deg']:.6g}°",
+            )
+        )
+    for key, text in lines:
+        print(f"{key:<10} {text}")
     return 0
 
 
@@ -239,7 +313,22 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--version", action="version", version=f"probeplace {__version__}")
     _add_log_options(p, False)
     sub = p.add_subparsers(dest="command", required=True)
-    s = sub.add_parser("scenes", help="list built-in scenes and scenes found on the search path")
+    s = sub.add_parser(
+        "scenes",
+        help="list built-in scenes and scenes found on the search path; with NAME, what that scene's "
+        "sidecar resolved to (lights, cameras, units, bounds, triangles)",
+    )
+    s.add_argument(
+        "name",
+        nargs="?",
+        default=None,
+        metavar="NAME",
+        help="a scene name or file: load it (sidecar, KNOWN_SCENES and --sun/--sky/--camera applied) and "
+        "print its lights, cameras, units, bounds and triangle count",
+    )
+    from .scene import add_scene_options
+
+    add_scene_options(s)
     s.set_defaults(func=_cmd_scenes)
     d = sub.add_parser(
         "demo",

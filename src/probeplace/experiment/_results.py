@@ -36,9 +36,10 @@ def iter_runs(exp_dir: str | os.PathLike) -> Iterator[Path]:
 
 
 def begin(final: Path) -> Path:
-    """A fresh partial folder for ``final``; stale partial folders of the same run are removed."""
+    """A fresh partial folder for ``final``; stale partial (and replaced ``.old``) folders of the same run
+    are removed."""
     final.parent.mkdir(parents=True, exist_ok=True)
-    for stale in final.parent.glob(f".{final.name}.partial-*"):
+    for stale in [*final.parent.glob(f".{final.name}.partial-*"), *final.parent.glob(f".{final.name}.old-*")]:
         shutil.rmtree(stale, ignore_errors=True)
     partial = final.parent / f".{final.name}.partial-{os.getpid()}"
     partial.mkdir()
@@ -46,14 +47,21 @@ def begin(final: Path) -> Path:
 
 
 def commit(partial: Path, final: Path) -> Path:
-    """Write ``DONE`` into ``partial`` (fsynced) and rename it to ``final`` (replacing an unfinished one)."""
+    """Write ``DONE`` into ``partial`` (fsynced) and rename it to ``final``, replacing an unfinished folder
+    or a finished one being redone (``redo``): that one is first renamed to a hidden ``.<run>.old-<pid>``,
+    so readers see the old run or the new one, never a half-removed folder."""
     with open(partial / DONE, "w") as f:
         f.write("ok\n")
         f.flush()
         os.fsync(f.fileno())
-    if final.exists():  # only an unfinished folder can be here: run() skips finished ones
-        shutil.rmtree(final)
+    old = None
+    if final.exists():
+        old = final.parent / f".{final.name}.old-{os.getpid()}"
+        shutil.rmtree(old, ignore_errors=True)
+        os.replace(final, old)
     os.replace(partial, final)
+    if old is not None:
+        shutil.rmtree(old, ignore_errors=True)
     return final
 
 

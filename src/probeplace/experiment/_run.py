@@ -16,7 +16,6 @@ the next method in the same sweep); the ``_run_s`` figures are what the report c
 from __future__ import annotations
 
 import contextlib
-import hashlib
 import json
 import logging
 import time
@@ -29,6 +28,7 @@ import numpy as np
 
 from .._core import ConfigError, ProbeplaceError
 from . import _results
+from ._inputs import NOT_COMPARED, RECORD_ONLY, json_digest, run_inputs
 from ._schema import (
     ExperimentConfig,
     bake_config,
@@ -82,8 +82,7 @@ def run_name(cfg: ExperimentConfig) -> str:
     if cfg.placer.options:  # e.g. a swept grid offset: each value gets its own run folder
         name += "__o" + ",".join(f"{k}={_option_text(v)}" for k, v in sorted(cfg.placer.options.items()))
     if cfg.scene.overrides:  # a swept sun or sky too; a hash: cameras would make the name too long
-        text = json.dumps(cfg.scene.overrides, sort_keys=True, default=str)
-        name += "__scene=" + hashlib.sha1(text.encode()).hexdigest()[:8]
+        name += "__scene=" + json_digest(cfg.scene.overrides)[:8]
     return name
 
 
@@ -258,18 +257,21 @@ def _evaluate(scene, lf, cfg: ExperimentConfig, caster, key, out: Path) -> dict:
 
 
 def run(cfg: Any, *, force: bool = False) -> RunResult:
-    """Run one experiment; a finished run folder is kept and returned as ``skipped`` unless ``force``.
+    """Run one experiment; a finished run folder is kept and returned as ``skipped`` when it ran with the
+    same config and inputs (``inputs.json``: scene file hash, resolved sidecar, code version; ``_inputs``),
+    refused when they differ or were not recorded, redone with ``redo=stale`` or ``force``.
 
     Args:
         cfg: an :class:`ExperimentConfig`, a dict or an OmegaConf node (Hydra's ``cfg``).
-        force: redo a finished run.
+        force: redo a finished run whatever it ran with (``redo=all``).
 
     Returns:
         :class:`RunResult` with the run folder and its metrics (``timings``: wall, compile and run seconds
         per stage, module docstring).
 
     Raises:
-        ConfigError: invalid or unknown configuration keys (the message names the key), a results
+        ConfigError: invalid or unknown configuration keys (the message names the key), a finished run
+            whose config or inputs differ or were not recorded (the message names the keys), a results
             folder that cannot be written, or a ``mitsuba`` backend that cannot load (before any work);
             an ``eval.view`` the scene lacks (after loading the scene, before placing).
         SceneError: the scene cannot be loaded, or has no light while the run bakes or evaluates.
@@ -279,10 +281,15 @@ def run(cfg: Any, *, force: bool = False) -> RunResult:
 
     cfg = to_config(cfg)
     final = run_dir(cfg)
-    if _results.is_complete(final) and not force:
-        _check_same_config(cfg, final)
-        log.info("skip %s (finished)", final)
-        return RunResult(final, json.loads((final / "metrics.json").read_text()), skipped=True)
+    redo = "all" if force else cfg.redo
+    if _results.is_complete(final) and redo != "all":
+        stale = finished_run_differences(cfg, run_inputs(cfg.scene), final)
+        if stale is None:
+            log.info("skip %s (finished)", final)
+            return RunResult(final, json.loads((final / "metrics.json").read_text()), skipped=True)
+        if redo != "stale":
+            raise ConfigError(stale)
+        log.info("redo %s: %s", final, stale)
     check_writable_folder(final.parent, "results_dir")  # before the scene is loaded or anything runs
     if cfg.eval.enabled:  # fail before any work, not after the bake
         try:
@@ -293,6 +300,7 @@ def run(cfg: Any, *, force: bool = False) -> RunResult:
                 "run with eval.enabled=false"
             ) from None
     _check_backends(cfg)
+    run_inputs(cfg.scene)  # a bad sidecar or a missing scene file is refused here, before any work
 
     partial = _results.begin(final)
     try:
@@ -311,6 +319,7 @@ def _execute(cfg: ExperimentConfig, partial: Path, final: Path) -> dict:
 
     from .._core._progress import progress_bar
     from ..render import resolve_backend
+    from ..scene._summary import scene_summary
 
     (partial / "config.yaml").write_text(config_to_yaml(cfg))
     _results.write_json(partial / "env.json", _results.environment())
@@ -331,6 +340,9 @@ def _execute(cfg: ExperimentConfig, partial: Path, final: Path) -> dict:
     lit = _needs_light(cfg)
     scene, translation = load_experiment_scene(cfg.scene, with_translation=True, require_light=lit)
     timings["scene_s"] = time.perf_counter() - t0
+    # the file hashes are cached by size and mtime: run() hashed them already
+    inputs = {**run_inputs(cfg.scene), "scene_loaded": scene_summary(scene)}
+    _results.write_json(partial / "inputs.json", inputs)
     _check_view(cfg, scene)
     stage("place")
     probes = _place_stage(cfg, scene, translation, partial, final, timings, metrics)
@@ -510,25 +522,91 @@ def _export_stage(cfg: ExperimentConfig, partial: Path) -> list[str]:
 
 
 # Keys that do not change a run's results: a finished run with other values here is still the same run.
-_NOT_RESULTS = ("progress", "results_dir")
+_NOT_RESULTS = ("progress", "results_dir", "redo")
+# How a refusal of a finished run ends: the ways out.
+_WAYS_OUT = "redo it with redo=stale (run(..., force=True)), use another name=..., or delete the folder"
 
 
-def _check_same_config(cfg: ExperimentConfig, final: Path) -> None:
-    """A finished run is only skipped when it ran with this config; otherwise refuse naming the keys."""
+def _config_differences(cfg: ExperimentConfig, final: Path) -> list[str]:
+    """The config keys whose values differ from the finished run's ``config.yaml``."""
     old = _flat(load_config_yaml(final / "config.yaml"))
     new = _flat(config_to_dict(cfg))
     # a key the finished run's config lacks came into the schema later: that run had its default
     default = _flat(config_to_dict(ExperimentConfig()))
-    diff = sorted(
+    return sorted(
         k
         for k in old.keys() | new.keys()
         if k not in _NOT_RESULTS and old.get(k, default.get(k)) != new.get(k)
     )
+
+
+def _check_same_config(cfg: ExperimentConfig, final: Path) -> None:
+    """Refuse a finished run that ran with another config, naming the keys."""
+    diff = _config_differences(cfg, final)
     if diff:
         raise ConfigError(
-            f"{final} is a finished run with a different config ({', '.join(diff)} differ); "
-            "use another name=..., delete the folder, or run(..., force=True)"
+            f"{final} is a finished run with a different config ({', '.join(diff)} differ); {_WAYS_OUT}"
         )
+
+
+def _short(v) -> str:
+    """A recorded value for a message: numbers and short text as they are, a hash cut to 12 characters."""
+    text = json.dumps(v)
+    if isinstance(v, str) and len(v) > 24:
+        return v[:12] + "…"
+    return text if len(text) <= 40 else text[:37] + "…"
+
+
+def _inputs_differences(old: dict, new: dict) -> list[str]:
+    """``key (old → new)`` for each compared input key (``_inputs``) whose value differs."""
+    a = _flat({k: v for k, v in old.items() if k not in RECORD_ONLY})
+    b = _flat({k: v for k, v in new.items() if k not in RECORD_ONLY})
+    missing = object()
+    out = []
+    for k in sorted(a.keys() | b.keys()):
+        va, vb = a.get(k, missing), b.get(k, missing)
+        if k not in NOT_COMPARED and va != vb:
+            show = [("absent" if v is missing else _short(v)) for v in (va, vb)]
+            out.append(f"{k} ({show[0]} → {show[1]})")
+    return out
+
+
+def finished_run_differences(cfg: ExperimentConfig, inputs: dict, final: Path) -> str | None:
+    """Why the finished run ``final`` is not this run (one line), or None when it is: its config
+    (``config.yaml``) or its inputs (``inputs.json``: ``run_inputs``) differ, or its inputs were not
+    recorded (a run written before they were)."""
+    diff = _config_differences(cfg, final)
+    if diff:
+        return f"{final} is a finished run with a different config ({', '.join(diff)} differ); {_WAYS_OUT}"
+    recorded = final / "inputs.json"
+    if not recorded.is_file():
+        return (
+            f"{final} is a finished run whose inputs (scene file hash, resolved sidecar, code version) were "
+            f"not recorded, so it cannot be checked against this run's; {_WAYS_OUT}"
+        )
+    try:
+        old = json.loads(recorded.read_text())
+    except (OSError, UnicodeDecodeError, json.JSONDecodeError) as e:
+        return f"{final}: inputs.json cannot be read ({type(e).__name__}); {_WAYS_OUT}"
+    diff = _inputs_differences(old if isinstance(old, dict) else {}, inputs)
+    if diff:
+        return f"{final} is a finished run with different inputs ({'; '.join(diff)}); {_WAYS_OUT}"
+    return None
+
+
+def check_finished(cfgs: Iterable[ExperimentConfig]) -> None:
+    """Refuse, before any run starts, a run of ``cfgs`` that would meet a finished run it cannot skip
+    (:func:`finished_run_differences`) and that ``redo`` does not redo: what ``run`` would refuse later.
+
+    Raises:
+        ConfigError: the first such run, its message naming the keys that differ.
+    """
+    for cfg in cfgs:
+        final = run_dir(cfg)
+        if cfg.redo == "never" and _results.is_complete(final):
+            stale = finished_run_differences(cfg, run_inputs(cfg.scene), final)
+            if stale is not None:
+                raise ConfigError(stale)
 
 
 def _inside_sdf(scene, pos: np.ndarray) -> int:
@@ -606,4 +684,13 @@ def _jsonable(d):
     return str(d)
 
 
-__all__ = ["ConfigError", "EvaluationUnavailable", "RunResult", "check_scenes", "run", "run_dir", "run_name"]
+__all__ = [
+    "ConfigError",
+    "EvaluationUnavailable",
+    "RunResult",
+    "check_finished",
+    "check_scenes",
+    "run",
+    "run_dir",
+    "run_name",
+]

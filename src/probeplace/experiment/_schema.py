@@ -197,6 +197,10 @@ class ExportConfig:
     formats: list[str] = field(default_factory=list)
 
 
+#: The values of ``ExperimentConfig.redo``.
+REDO = ("never", "stale", "all")
+
+
 @dataclass
 class ExperimentConfig:
     """One run: scene × placer × refiner × seed, and how it is baked, evaluated and exported.
@@ -208,6 +212,10 @@ class ExperimentConfig:
         results_dir: root of all results.
         seed: PRNG seed of the whole run (placement, bake, evaluation get split keys).
         progress: show progress bars.
+        redo: what to do with a finished run folder: ``never`` (skip it when it ran with this config and
+            these inputs, ``inputs.json``; refuse it, naming the keys, when they differ or were not
+            recorded), ``stale`` (redo it in those cases, skip it otherwise) or ``all`` (redo it always).
+            Not part of a run's identity.
     """
 
     name: str = "default"
@@ -215,6 +223,7 @@ class ExperimentConfig:
     results_dir: str = "results"
     seed: int = 0
     progress: bool = True
+    redo: str = "never"
     scene: SceneConfig = field(default_factory=SceneConfig)
     placer: PlacerConfig = field(default_factory=PlacerConfig)
     refiner: RefinerConfig = field(default_factory=RefinerConfig)
@@ -288,6 +297,8 @@ def _check_run(cfg: ExperimentConfig) -> None:
         _name("run", cfg.run)
     if isinstance(cfg.seed, bool) or not isinstance(cfg.seed, int) or cfg.seed < 0:
         _fail("seed", "must be a non-negative integer", cfg.seed)
+    if cfg.redo not in REDO:
+        _fail("redo", f"must be one of {', '.join(REDO)}", cfg.redo)
     if not isinstance(cfg.scene.name, str) or not cfg.scene.name:
         _fail("scene.name", "must be a scene name or file", cfg.scene.name)
     t = list(cfg.scene.translate_frac)
