@@ -5,7 +5,7 @@ VENV   := .venv
 PY     := $(VENV)/bin/python
 STAMP  := $(VENV)/.installed
 
-.PHONY: demo demo-stages test test-slow lint bench cluster clean-venv
+.PHONY: demo demo-stages test test-isa test-slow lint bench cluster clean-venv
 
 NODE_STAMP := node_modules/.installed
 LLVM_STAMP := $(VENV)/.llvm
@@ -57,7 +57,23 @@ PYTEST_PAR := -n auto --maxprocesses=4 --dist loadfile --no-loadscope-reorder
 test: $(TOOLS)
 	@$(PY) -m pytest -q $(PYTEST_PAR); rc=$$?; \
 	if [ $$rc -eq 5 ]; then echo "make test: pytest collected no tests - treating as an error"; exit 1; fi; \
-	exit $$rc
+	if [ $$rc -ne 0 ]; then exit $$rc; fi
+	@$(MAKE) --no-print-directory test-isa
+
+# The portability check, part of `make test`: the float-sensitive tests (marker `isa`: two float code
+# paths compared, or a tolerance that rounding could break) again with XLA:CPU capped at older
+# instruction sets. XLA compiles differently for SSE4.2, AVX2 and AVX-512 (FMA contraction, vector width,
+# reduction order), and CI and every user run on whatever CPU they get; the default run above covers
+# this machine's own set. The flag names x86 instruction sets, so other CPUs skip it and say so.
+ISA_CAPS := SSE4_2 AVX2
+test-isa: $(TOOLS)
+	@if [ "$$(uname -m)" != x86_64 ]; then echo "make test-isa: $$(uname -m) is not x86-64 - the --xla_cpu_max_isa caps do not apply; skipped"; exit 0; fi; \
+	for cap in $(ISA_CAPS); do \
+	  echo "make test-isa: float-sensitive tests with XLA:CPU capped at $$cap"; \
+	  XLA_FLAGS="$$XLA_FLAGS --xla_cpu_max_isa=$$cap" $(PY) -m pytest -q -m "isa and not slow" $(PYTEST_PAR); rc=$$?; \
+	  if [ $$rc -eq 5 ]; then echo "make test-isa: no test is marked isa - treating as an error"; exit 1; fi; \
+	  if [ $$rc -ne 0 ]; then exit $$rc; fi; \
+	done
 
 test-slow: $(TOOLS)
 	$(PY) -m pytest -q -m slow $(PYTEST_PAR)
