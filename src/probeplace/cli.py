@@ -183,7 +183,9 @@ def _cmd_place(args: argparse.Namespace) -> int:
     from .scene import load_scene, scene_overrides_from_args
 
     out, png, budget, region = _checked_place_args(args)
-    scene = load_scene(args.scene, overrides=scene_overrides_from_args(args))
+    # vardis path-traces its dense probes: a scene without light is refused by the load, naming the method
+    needs_light = "--method vardis" if args.method == "vardis" else False
+    scene = load_scene(args.scene, overrides=scene_overrides_from_args(args), require_light=needs_light)
     if args.memory_budget is not None:
         from .placement import count_for_memory
         from .probes import BakeConfig, probe_bytes

@@ -1128,4 +1128,88 @@ CATALOGUE: list[Entry] = [
     ),
 ]
 
+
+# ------------------------------------------ probes, cameras and lights that do not fit the scene (issue 31)
+def _eval_recorded(c):
+    """``evaluate --scene rooms`` of a ProbeSet that ``probeplace place cornell_box`` wrote."""
+    doc = json.loads(_probe_doc([[200.0, 250.0, 200.0]]))
+    c.write("p.json", json.dumps({**doc, "metadata": {"scene": "cornell_box"}}))
+    return _cli(*_EVAL[:3], "rooms", "--probes", "<dir>/p.json", "--out", "<dir>/ev")(c)
+
+
+def _scene_check(sidecar: str, *, warn: bool = False):
+    """The evaluate command's view and light checks on the sidecar tests' room with ``sidecar``."""
+
+    def run(c):
+        from probeplace.evaluate._scene_checks import check_views_and_lights as check
+        from probeplace.evaluate._scene_checks import host_caster, warn_unreached_lights
+        from probeplace.scene import load_scene
+        from tests.scene.sidecar_util import write_room_obj
+
+        path = write_room_obj(c.tmp)
+        c.write("room.probeplace.yaml", sidecar)
+        scene = load_scene(path)
+        if warn:
+            return warn_unreached_lights(scene, host_caster(scene), path)
+        return check(scene, path)
+
+    return run
+
+
+_DOOR = "  door: {position: [2, 1.5, 0.5], look_at: [2, 1.2, 4]}\n"
+_LAMP = "  lamp: {position: [2, 0.2, 2], look_at: [2, 0.2, 4]}\n"  # inside the lamp box on the floor
+
+CATALOGUE += [
+    Entry(
+        "eval-probes-placed-elsewhere",
+        "probes",
+        "`evaluate --scene rooms` of a ProbeSet whose metadata records `cornell_box`",
+        _eval_recorded,
+        ConfigError,
+        r"^--probes: .*p\.json: the probes were placed in scene 'cornell_box' but are evaluated in 'rooms'; "
+        r"evaluate them with --scene cornell_box",
+    ),
+    Entry(
+        "bake-probes-of-another-scene",
+        "probes",
+        "bake of a probe set lying farther outside the scene than its size (another scene's, other units)",
+        lambda c: bake(c.room(lit=True), cornell_probes(c.cornell())[:4]),
+        ConfigError,
+        r"^bake: 4 of 4 probes lie outside room's bounds \[0, 0, 0\]–\[4, 3, 5\] by more than its size",
+    ),
+    Entry(
+        "tracer-probes-of-another-scene",
+        "probes",
+        "make_tracer on probes all moved 10 m outside the bounds",
+        _tracer_with(lambda p: p + 10000.0),
+        ConfigError,
+        r"^make_tracer: 8 of 8 probes lie outside the scene's bounds",
+    ),
+    Entry(
+        "sidecar-camera-in-solid",
+        "scene data",
+        "a sidecar camera inside a solid (the room's lamp box), checked before rendering",
+        _scene_check(f"sky: daylight\ncameras:\n{_DOOR}{_LAMP}"),
+        ConfigError,
+        r"^room\.probeplace\.yaml: cameras\.lamp: position \[2, 0\.2, 2\] is inside solid geometry",
+    ),
+    Entry(
+        "sun-below-horizon",
+        "scene data",
+        "a sidecar sun below the horizon of a closed room (warned: it reaches no point the views see)",
+        _scene_check(f"sun: {{azimuth: 90, elevation: -20}}\ncameras:\n{_DOOR}", warn=True),
+        None,
+        r"room: the sun \(elevation -20°, below the horizon\) reaches 0 of the \d+ surface points the views",
+    ),
+    Entry(
+        "vardis-no-light",
+        "scene data",
+        "`place(method='vardis')` on a scene with no light (Vardis path-traces its probe values)",
+        _place(method="vardis", budget=4),
+        SceneError,
+        r"^vardis placement ranks probes by the light they see, and scene 'room' has no light .*"
+        r"room\.probeplace\.yaml .*keys: sun, sky, emitters",
+    ),
+]
+
 assert len({e.id for e in CATALOGUE}) == len(CATALOGUE), "catalogue ids must be unique"

@@ -173,23 +173,67 @@ def _checked_inputs(args: argparse.Namespace):
             raise _as_option(e) from None
         if isinstance(args.bake_spp, bool) or args.bake_spp < 1:
             raise ConfigError(f"--bake-spp must be a positive integer, got {args.bake_spp}")
-        probes, _ = load_probe_set(path)
+        probes, meta = load_probe_set(path)
+        _check_recorded_scene(meta, path, args.scene)
     if not bool(np.asarray(probes.active).any()):
         raise ConfigError(f"--probes: {path} holds no active probes; nothing to bake or evaluate")
     return path, config, bake_cfg, probes
+
+
+def _scene_key(name_or_path: str) -> str:
+    """The name a scene loads under: a file's stem (``load_scene`` names a file scene so), else the name."""
+    from ..scene._load import _looks_like_path
+
+    return Path(name_or_path).stem if _looks_like_path(name_or_path) else str(name_or_path)
+
+
+def _check_recorded_scene(meta: dict, path: Path, scene: str) -> None:
+    """Refuse a ProbeSet file that records another scene (``probeplace place`` writes ``metadata.scene``:
+    the name or path it was given) than ``--scene``, compared by the name each loads under; the check a
+    baked ``.npz`` gets (``probes.check_bake_settings``), before the scene is even loaded."""
+    from ..probes._bake import check_probe_scene
+
+    record = meta.get("metadata")
+    recorded = record.get("scene") if isinstance(record, dict) else None
+    if not isinstance(recorded, str) or not recorded:
+        return
+    check_probe_scene(
+        _scene_key(recorded),
+        _scene_key(scene),
+        made="placed",
+        what=f"--probes: {path}: the probes",
+        fix=f"evaluate them with --scene {recorded}, or place probes in {scene} (probeplace place {scene} "
+        f"--out <file>); if both are the same scene under two names, delete metadata.scene from {path.name}",
+    )
+
+
+def _check_probes_fit(probes, path: Path, scene, args: argparse.Namespace, config, overrides, view) -> None:
+    """After the scene is loaded, before any caster, bake or render: the probes lie in the scene (a baked
+    file's recorded scene and depth first), the cameras are in free space, the lights reach the views."""
+    from ..probes import check_bake_settings
+    from ..probes._bake import check_probes_in_scene
+    from ._scene_checks import check_views_and_lights
+
+    if path.suffix == ".npz":
+        check_bake_settings(probes, scene_name=scene.name, eval_max_depth=config.max_depth)
+    lo, hi = (np.asarray(b, np.float64) for b in scene.bounds)
+    check_probes_in_scene(
+        np.asarray(probes.pos_world)[np.asarray(probes.active)],
+        lo,
+        hi,
+        f"--probes: {path}",
+        scene=scene.name,
+        fix=f"the probe set was made for another scene or in other units; place probes in {scene.name} "
+        f"(probeplace place {args.scene} --out <file>) and evaluate those",
+    )
+    check_views_and_lights(scene, args.scene, overrides, view=view)
 
 
 def run(args: argparse.Namespace) -> int:
     import jax
 
     from ..geometry import make_caster
-    from ..probes import (
-        bake_depth_for,
-        bake_probes,
-        check_bake_settings,
-        path_traced_radiance,
-        save_probes,
-    )
+    from ..probes import bake_depth_for, bake_probes, path_traced_radiance, save_probes
     from ..scene import load_scene, scene_overrides_from_args
     from . import evaluate, write_evaluation
 
@@ -202,10 +246,10 @@ def run(args: argparse.Namespace) -> int:
     view = args.view or views[0]
     if view not in views:
         raise ConfigError(f"--view: scene {scene.name!r} has no view {view!r}; views: {views}")
+    _check_probes_fit(probes, path, scene, args, config, overrides, view)
     caster = make_caster(scene, use="render")
     if path.suffix == ".npz":
         lf = probes
-        check_bake_settings(lf, scene_name=scene.name, eval_max_depth=config.max_depth)
     else:
         lf = bake_probes(
             scene,

@@ -224,8 +224,9 @@ def _dense_set(scene: Scene, options: VardisOptions, shift: np.ndarray, key) -> 
 
 def place_vardis(scene: Scene, request: PlaceRequest, options: VardisOptions) -> PlaceResult:
     """Vardis 2021: greedy removal from a dense set down to the budget (``"auto"``: to ``tolerance``)."""
-    from ._vardis import dense_probe_sh, evaluation_points, vardis_simplify
+    from ._vardis import check_vardis_light, dense_probe_sh, evaluation_points, vardis_simplify
 
+    check_vardis_light(scene)  # before the SDF: the probe values are path traced
     shift = _shift("vardis", options)
     t_all, timings = time.perf_counter(), {}
     k_g, k_v, k_e = (stream(request.seed, f"vardis-{n}") for n in ("dense", "values", "eval-points"))

@@ -40,7 +40,7 @@ import jax.numpy as jnp
 import numpy as np
 from jaxtyping import Array, Float
 
-from .._core import ConfigError, Scene, next_pow2, scene_box
+from .._core import ConfigError, Scene, SceneError, next_pow2, scene_box
 from .._core._sh import sh_basis
 from ._tetra import RemovalPlan, TetMesh
 from ._valid import _fibonacci_directions
@@ -55,6 +55,23 @@ Y00 = 0.282095  # SH band-0 basis constant (R&H 2001 Eq. 3); mean radiance = c00
 LAZY_HEAD = 32
 # float32 elements per scoring chunk (candidates × points × 4 × features × 3): bounds the gather's memory.
 CHUNK_ELEMENTS = 1 << 24
+
+
+def check_vardis_light(scene: Scene) -> None:
+    """Refuse a scene without light before any work: Vardis ranks probes by the radiance they reconstruct
+    (path-traced, :func:`dense_probe_sh`), so unlike the geometric methods it needs a light.
+
+    Raises:
+        SceneError: one line naming the method, the scene and the sidecar keys that add light.
+    """
+    from ..scene._sidecar import no_light_hint
+
+    if not scene.has_light:
+        raise SceneError(
+            f"vardis placement ranks probes by the light they see, and scene {scene.name!r} has no light (no "
+            f"emissive material, sun or sky); {no_light_hint(stem=scene.name)}; or use a method that needs "
+            "no light (skeleton+medial, grid, lod-grid)"
+        )
 
 
 def stratified_directions(n_probes: int, n_dirs: int, *, key: jax.Array) -> np.ndarray:

@@ -319,9 +319,59 @@ def default_radiance_res(scene: Scene, *, quality: float = 1.0) -> int:
     return int(2 ** np.clip(np.round(np.log2(max(r, 1.0))), 4, 7))
 
 
-def _warn_probe_layout(pos: np.ndarray, lo: np.ndarray, hi: np.ndarray, what: str) -> None:
-    """Log (not refuse) duplicate probes and probes outside the scene box: both are legal but usually a
-    mistake — duplicates cost work for no gain, outside probes see the scene from beyond its bounds."""
+#: A probe farther outside the scene box than this many times the box's largest side is not a probe of this
+#: scene. Why a whole size: a set made for this scene stays within a fraction of it (placement keeps probes
+#: in the box; a hand-placed probe in front of an opening or above an open court is a fraction of the size
+#: out; the tracer tests' single quad keeps its probe half the quad's size away), while a set made for
+#: another scene or in other units is off by the scale between them (mm against m: 1000×) or by where the
+#: other scene stands. One size leaves both kinds well clear of the line.
+PROBES_OUTSIDE_MARGIN = 1.0
+#: Refused when more than this share of the active probes lie that far out. A stray probe or two (a typo
+#: in a hand-made set) is baked with the warning of :func:`_warn_probe_layout`; a tenth or more of the set
+#: means it was made in another frame, and each of those probes costs a full bake for no receiver.
+PROBES_OUTSIDE_SHARE = 0.1
+
+
+def _vec(x: np.ndarray) -> str:
+    return "[" + ", ".join(f"{float(v):.4g}" for v in x) + "]"
+
+
+def check_probes_in_scene(
+    pos: np.ndarray,
+    lo: np.ndarray,
+    hi: np.ndarray,
+    what: str,
+    *,
+    scene: str | None = None,
+    fix: str = "the probes were made for another scene or in other units; place probes in this scene",
+) -> None:
+    """Refuse a probe set that does not belong to the scene: more than :data:`PROBES_OUTSIDE_SHARE` of
+    ``pos`` (the active probes) lie farther outside the box ``lo``–``hi`` than :data:`PROBES_OUTSIDE_MARGIN`
+    times its largest side. One line: ``what``, the count, the scene (``scene``, a name) and ``fix``.
+
+    Raises:
+        ConfigError: see above (cheap: no geometry is read, so callers run it before any slow work).
+    """
+    pos = np.asarray(pos, np.float64).reshape(-1, 3)
+    lo, hi = np.asarray(lo, np.float64), np.asarray(hi, np.float64)
+    size = float(np.max(hi - lo))
+    if len(pos) == 0 or not size > 0:
+        return
+    beyond = np.maximum(np.maximum(lo - pos, pos - hi), 0.0).max(axis=1)  # per-axis distance out of the box
+    far = beyond > PROBES_OUTSIDE_MARGIN * size
+    if far.sum() > PROBES_OUTSIDE_SHARE * len(pos):
+        whose = f"{scene}'s" if scene is not None else "the scene's"
+        raise ConfigError(
+            f"{what}: {int(far.sum())} of {len(pos)} probes lie outside {whose} bounds {_vec(lo)}–{_vec(hi)} "
+            f"by more than its size ({size:.4g}); {fix}"
+        )
+
+
+def _warn_probe_layout(pos: np.ndarray, lo: np.ndarray, hi: np.ndarray, what: str, **scene) -> None:
+    """Refuse probes of another scene (:func:`check_probes_in_scene`, ``scene`` its keywords), then log
+    (not refuse) duplicate probes and probes outside the scene box: both are legal but usually a mistake —
+    duplicates cost work for no gain, outside probes see the scene from beyond its bounds."""
+    check_probes_in_scene(pos, lo, hi, what, **scene)
     n_dup = len(pos) - len(np.unique(pos, axis=0))
     if n_dup:
         log.warning("%s: %d of %d probe positions are duplicates", what, n_dup, len(pos))
@@ -400,10 +450,12 @@ def bake_probes(
         The baked :class:`LightFieldProbes`; float32, maps with one-texel borders, ``bake`` settings set.
 
     Raises:
-        ConfigError: bad probe positions (NaN/inf), empty set or configuration.
+        ConfigError: bad probe positions (NaN/inf), empty set or configuration; probes of another scene
+            (:func:`check_probes_in_scene`).
         ResourceError: one batch plus the output maps would not fit in memory (checked before allocating).
 
-    Duplicate probes and probes outside the scene bounds are baked as given, with a logged warning.
+    Duplicate probes and probes outside the scene bounds are baked as given, with a logged warning; a set
+    of another scene (more than a tenth of it farther out than the scene's size) is refused.
     """
     pos = np.asarray(probes.pos_world, np.float32)
     if not np.isfinite(pos).all():
@@ -415,6 +467,8 @@ def bake_probes(
     lo, hi = scene_box(scene, dtype=None)
     far = float(2.0 * np.linalg.norm(hi - lo))
 
+    # a set of another scene is refused before the memory check and any ray (inactive rows are padding)
+    _warn_probe_layout(pos[np.asarray(probes.active)], lo, hi, "bake", scene=scene.name)
     n = pos.shape[0]
     bsz = config.probes_per_batch
     # Refuse up front (issue 9): one batch's rays (~200 bytes per path, see BakeConfig) plus the output
@@ -431,7 +485,6 @@ def bake_probes(
         f"probes_per_batch={bsz}",
         "lower radiance_res, geometry_res, n_sub or probes_per_batch",
     )
-    _warn_probe_layout(pos[np.asarray(probes.active)], lo, hi, "bake")  # inactive rows are padding
     parts: list[tuple] = []
     keys = jax.random.split(key, (n + bsz - 1) // bsz)
     bar = progress_bar(total=n, desc=f"bake {res}² probes", unit="probe", disable=not config.progress)
@@ -533,6 +586,21 @@ def _settings(scene: Scene, radiance_fn, res: int, n_sub: int, key) -> BakeSetti
     )
 
 
+def check_probe_scene(
+    recorded: str, evaluated: str, *, made: str, fix: str, what: str = "the probes"
+) -> None:
+    """Refuse probes made in another scene than the one they are evaluated in: the scene a baked ``.npz``
+    records (:func:`check_bake_settings`) and the one a ProbeSet file records (``probeplace evaluate``).
+
+    Raises:
+        ConfigError: ``recorded != evaluated``; one line naming both and ``fix``.
+    """
+    if recorded != evaluated:
+        raise ConfigError(
+            f"{what} were {made} in scene {recorded!r} but are evaluated in {evaluated!r}; {fix}"
+        )
+
+
 def check_bake_settings(
     lf: LightFieldProbes, *, scene_name: str, eval_max_depth: int, specular: float = 1.0
 ) -> None:
@@ -563,11 +631,8 @@ def check_bake_settings(
             f"the probes' bake settings are version {b.version}, newer than this probeplace reads "
             f"({BAKE_SETTINGS_VERSION}); update probeplace"
         )
-    if b.scene != scene_name:
-        raise ConfigError(
-            f"the probes were baked in scene {b.scene!r} but are evaluated in {scene_name!r}; evaluate them "
-            f"in {b.scene!r} or bake the probe set in {scene_name!r}"
-        )
+    fix = f"evaluate them in {b.scene!r} or bake the probe set in {scene_name!r}"
+    check_probe_scene(b.scene, scene_name, made="baked", fix=fix)
     if b.radiance != "path_traced":
         return
     want = bake_depth_for(eval_max_depth)

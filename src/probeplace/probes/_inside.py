@@ -16,6 +16,11 @@ is viewed from inside is free space). Triangle winding is never read.
 * A probe is inside when its linked group holds no seed. Inside a closed solid a probe sees only that
   solid's inner walls: no sky, no camera, no other probe's free space.
 
+Cameras (:func:`points_in_solid`): the reach test takes the views as its seeds of free space, so it
+cannot judge a view camera itself. A camera is judged by the winding instead, as the bake's ``backface``
+test judges probes: from inside a closed solid every ray hits the solid's inner side. Only a point from
+which no ray escapes is judged, so an open scene, or a shell seen from outside, never counts as solid.
+
 Limits: a probe in free space that is sealed off from every view and from the sky (a closed void, a
 sealed room without a camera) counts as inside; so does a free probe that sees neither the sky, a
 camera, nor any reached probe (a very sparse set in a maze of rooms). A probe inside a solid that leaks
@@ -120,3 +125,47 @@ def probes_inside(
     graph = coo_matrix((np.ones(int(linked.sum())), (i[linked], j[linked])), shape=(n, n))
     _, label = connected_components(graph, directed=False)
     return ~np.isin(label, label[seed])
+
+
+def host_closest_hit(caster, origins: np.ndarray, dirs: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """(t, triangle) of each ray's closest hit as NumPy arrays (``inf``, -1 on a miss). An Embree caster
+    answers through its own host query, with no JAX op: the scene checks that use this run before
+    anything compiles (``evaluate._scene_checks``); any other caster through ``closest_hit``."""
+    from ..geometry import EmbreeCaster
+
+    if isinstance(caster, EmbreeCaster):
+        r = caster._run(origins, dirs, np.inf, "INTERSECT")
+        tri = np.asarray(r["primID"], np.int64)
+        return np.where(tri >= 0, np.asarray(r["tfar"], np.float64), np.inf), tri
+    hit = caster.closest_hit(jnp.asarray(origins, jnp.float32), jnp.asarray(dirs, jnp.float32))
+    tri = np.asarray(hit.tri, np.int64)
+    return np.where(tri >= 0, np.asarray(hit.t, np.float64), np.inf), tri
+
+
+def face_normals(scene) -> np.ndarray:
+    """(n_tri, 3) unnormalised front-face normals (counter-clockwise winding), NumPy."""
+    v = np.asarray(scene.vertices, np.float64)[np.asarray(scene.faces)]
+    return np.cross(v[:, 1] - v[:, 0], v[:, 2] - v[:, 0])
+
+
+def points_in_solid(
+    caster, scene, points: np.ndarray, *, n_dirs: int = 64, backface_share: float = 0.5
+) -> tuple[np.ndarray, np.ndarray]:
+    """Whether each point is inside a closed solid of ``scene``, by the winding (module docstring,
+    "Cameras"): none of its ``n_dirs`` rays (a Fibonacci sphere) escapes and more than ``backface_share``
+    of their first hits are back faces (the bake's ``backface`` rule, ``BakeConfig.inside_backface_share``).
+
+    Returns:
+        ((n,) bool inside, (n,) float share of the rays that hit a back face).
+    """
+    from ..placement._valid import _fibonacci_directions
+
+    pts = np.asarray(points, np.float64).reshape(-1, 3)
+    dirs = _fibonacci_directions(n_dirs).astype(np.float64)
+    o = np.repeat(pts, n_dirs, axis=0)
+    d = np.tile(dirs, (len(pts), 1))
+    _, tri = host_closest_hit(caster, o, d)
+    hit = tri >= 0
+    back = hit & (np.sum(face_normals(scene)[np.maximum(tri, 0)] * d, axis=1) > 0)
+    share = back.reshape(-1, n_dirs).mean(axis=1)
+    return hit.reshape(-1, n_dirs).all(axis=1) & (share > backface_share), share

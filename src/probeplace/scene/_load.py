@@ -135,7 +135,7 @@ def load_scene(
     search_path=None,
     overrides: Mapping | SceneConfig | None = None,
     sidecar: bool = True,
-    require_light: bool = False,
+    require_light: bool | str = False,
 ) -> Scene:
     """Load a scene: a built-in by name, a file by path, or an external scene by name on the search path.
 
@@ -148,7 +148,8 @@ def load_scene(
         overrides: sidecar keys (docs/scenes.md, "Sidecar config") that win over the file's sidecar,
             e.g. ``scene_overrides(sun="az=120,el=35")`` from the CLI; also applied to built-ins.
         sidecar: read ``<stem>.probeplace.yaml`` beside a scene file (False: ignore it).
-        require_light: refuse a scene with no light (an emitter, a sun or a sky) instead of warning.
+        require_light: refuse a scene with no light (an emitter, a sun or a sky) instead of warning; a
+            string names what needs the light in the message (``"vardis placement"``).
 
     Returns:
         The validated Scene, with lights, sky, units and at least two views (a file keeps its cameras,
@@ -184,10 +185,13 @@ def load_scene(
     return load_scene_file(path, overrides=overrides, sidecar=sidecar, require_light=require_light)
 
 
-def _light_check(scene: Scene, source, require_light: bool, hint_path) -> Scene:
+def _light_check(scene: Scene, source, require_light: bool | str, hint_path) -> Scene:
     if not scene.has_light:
+        # a string says who needs the light (``place --method vardis``), so the refusal names it
+        who = f", which {require_light} needs" if isinstance(require_light, str) else ""
         msg = (
-            f"{source}: the scene has no light (no emissive material, sun or sky); {no_light_hint(hint_path)}"
+            f"{source}: the scene has no light (no emissive material, sun or sky){who}; "
+            f"{no_light_hint(hint_path)}"
         )
         if require_light:
             raise SceneError(msg)
@@ -219,7 +223,7 @@ def load_scene_file(
     *,
     overrides: Mapping | SceneConfig | None = None,
     sidecar: bool = True,
-    require_light: bool = False,
+    require_light: bool | str = False,
 ) -> Scene:
     """Load one scene file (glTF/GLB, OBJ+MTL, PLY) and apply its config layers (:func:`load_scene`)."""
     path = Path(path)

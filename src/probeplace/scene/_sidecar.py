@@ -48,9 +48,13 @@ def sidecar_path(scene_path: str | os.PathLike) -> Path:
     return Path(scene_path).with_suffix(SIDECAR_SUFFIX)
 
 
-def no_light_hint(scene_path: str | os.PathLike | None = None) -> str:
-    """The end of every "no light" message: which sidecar keys add light, and where the sidecar goes."""
-    where = sidecar_path(scene_path).name if scene_path is not None else f"<scene>{SIDECAR_SUFFIX}"
+def no_light_hint(scene_path: str | os.PathLike | None = None, *, stem: str | None = None) -> str:
+    """The end of every "no light" message: which sidecar keys add light, and where the sidecar goes
+    (beside ``scene_path``; or, from a loaded scene, ``stem``: a file scene's name is its file's stem)."""
+    if scene_path is not None:
+        where = sidecar_path(scene_path).name
+    else:
+        where = f"{stem or '<scene>'}{SIDECAR_SUFFIX}"
     return (
         f"add one with a sidecar {where} beside the scene file (keys: {', '.join(LIGHT_KEYS)}; "
         "see docs/scenes.md) or the overrides sun= / sky= (CLI --sun / --sky; runner scene.overrides)"
