@@ -13,6 +13,7 @@ import pytest
 
 from probeplace.experiment import load_runs, make_report
 from probeplace.experiment._report_charts import (
+    DODGE_STEP,
     colours,
     fig_memory,
     fig_mse_vs_count,
@@ -91,7 +92,14 @@ def test_mse_vs_count_draws_seed_intervals_on_log_axes(seeded):
         x, y = line.get_data()
         h = T975_2 * math.log(2.0) / math.sqrt(3)  # the seeds' log sd is ln 2
         gm = [2.0 * A["skeleton"] / n for n in COUNTS]  # geometric mean of 1, 2, 4 is 2
-        np.testing.assert_allclose(x, COUNTS)
+        # equal counts side by side: skeleton (2nd of 2 series) right of the count, grid left, each half a
+        # dodge step of the axis' span (log10 271/4 decades) away, in log space
+        shift = 10 ** (0.5 * DODGE_STEP * math.log10(max(COUNTS) / min(COUNTS)))
+        np.testing.assert_allclose(x, np.array(COUNTS) * shift, rtol=1e-12)
+        (grid_bars,) = [c for c in ax.containers if c.get_label() == "grid"]
+        np.testing.assert_allclose(grid_bars.lines[0].get_xdata(), np.array(COUNTS) / shift, rtol=1e-12)
+        assert 1.01 < shift < 1.05  # apart by about a marker, still at its count
+        assert grid_bars.lines[0].get_marker() != line.get_marker()
         np.testing.assert_allclose(y, gm, rtol=1e-12)
         ends = np.array([seg[:, 1] for seg in segments.get_segments()])  # (lo, hi) per point
         np.testing.assert_allclose(ends[:, 0], np.array(gm) * math.exp(-h), rtol=1e-9)

@@ -11,7 +11,12 @@ Several runs of one method at one probe count (seeds, scene offsets) are one *ce
 geometric mean with a 95 % Student-t interval in log space as an error bar, and the tables print the
 same numbers. Equal-count tables compare runs at exactly the same probe count (exact budgets); the
 equal-memory tables compare runs holding equal bytes of probe data (``metrics.memory.bytes_total``),
-else each method's run nearest to the grid's memory, with the bytes shown.
+else each method's run nearest to the grid's memory, with the bytes shown. The equal-time and
+equal-quality tables compare cells too (a method's runs at one count: median time, geometric-mean MSE)
+against the grid's cell at its count, so the grid is 1.00 × itself. A method whose probes are
+bit-identical to an earlier method's on the same seed, pose and count (``probes.json``) is named
+``method (= other)`` in the tables. Failures are re-judged by the runner's current criteria
+(``_run.failures``); the stability tables explain them and show the unresolved-ray share apart.
 
 Every time axis and the equal-time tables use run time *without JIT compilation*: ``place_bake_run_s``
 from ``metrics.json`` (``experiment._run``: the first run of a sweep pays the compilation the later ones
@@ -46,18 +51,23 @@ from ._report_data import (
     black_mse,
     cells,
     compile_s,
+    count_cells,
+    full_coverage,
     group,
     leak_share,
     log_t_interval,
+    median_run_s,
     memory,
     mse,
     n_unsplit,
     pareto_front,
+    placement_twins,
     pose,
-    run_s,
+    run_failures,
     seed_paired_ratio,
     shade_s,
     stage_run_s,
+    unresolved,
     words,
 )
 from ._results import iter_runs
@@ -89,6 +99,28 @@ def _fmt(v, spec=".3g") -> str:
     if isinstance(v, float) and not math.isfinite(v):
         return "—"
     return format(v, spec) if isinstance(v, int | float) and not isinstance(v, bool) else str(v)
+
+
+def _coverage(r: dict) -> str:
+    """The run's coverage to 4 decimals; a coverage short of full (:func:`full_coverage`) that would
+    print as 1.0000 is written as 1 − its shortfall, so the table never shows 1.0000 beside a failure."""
+    c, full = r.get("coverage"), full_coverage(r)
+    if full is None:
+        return "—"
+    if not full and f"{c:.4f}" == "1.0000":
+        return f"1 − {1.0 - c:.1e}"
+    return f"{c:.4f}"
+
+
+def _method(lab: str, runs: list[dict], twins: dict) -> str:
+    """The method's name in a table row, with ``(= other)`` when its placement in every run of the row is
+    bit-identical to another method's on the same seed (``(= other on k of n runs)`` when in some)."""
+    same = [twins[r["run"]] for r in runs if r["run"] in twins]
+    if not same:
+        return lab
+    other = max(set(same), key=same.count)
+    k = same.count(other)
+    return f"{lab} (= {other})" if k == len(runs) else f"{lab} (= {other} on {k} of {len(runs)} runs)"
 
 
 def _interp_log(x0: float, pts: list) -> float | None:
@@ -155,19 +187,19 @@ def _all_runs_table(runs: list[dict], labels: list[str]) -> list[str]:
         e = r.get("eval") or {}
         mem = memory(r)
         md.append(
-            f"| {r['run']} | {r['n_probes']} | {_fmt(r.get('coverage'), '.4f')} "
+            f"| {r['run']} | {r['n_probes']} | {_coverage(r)} "
             f"| {_fmt(stage_run_s(r, 'place'), '.1f')} | {_fmt(stage_run_s(r, 'bake'), '.1f')} "
             f"| {_fmt(compile_s(r), '.1f')} | {_fmt(mse(r))} | {_fmt(mse(r, 'mse_diffuse_indirect'))} "
             f"| {_fmt(mse(r, 'mse_full'))} | {_fmt(e.get('noise_floor_glossy_indirect'))} "
             f"| {_fmt(None if shade_s(r) is None else 1e3 * shade_s(r), '.2f')} "
             f"| {_fmt(None if mem is None else mem / 1024, '.1f')} "
-            f"| {_fmt(e.get('unresolved_share'), '.4f')} | {_leak(r)} "
-            f"| {', '.join(r.get('failures', [])) or 'none'} |"
+            f"| {_fmt(unresolved(r), '.1%')} | {_leak(r)} "
+            f"| {', '.join(run_failures(r)) or 'none'} |"
         )
     return md
 
 
-def _equal_count_table(rs, labels, scene, g_count: int, g_mse: float) -> list[str]:
+def _equal_count_table(rs, labels, scene, g_count: int, g_mse: float, twins: dict) -> list[str]:
     """Each method's MSE at exactly the grid's probe count (geometric mean over its runs there, 95 %
     t-interval); a method with no run at that count: log-log interpolated between its counts, else its
     nearest count, and the row says so."""
@@ -190,6 +222,7 @@ def _equal_count_table(rs, labels, scene, g_count: int, g_mse: float) -> list[st
         if not cell:
             continue
         exact = [c for c in cell if c[0] == g_count]
+        at = [r for r in rs if r["label"] == lab and r["n_probes"] == g_count]
         if exact:
             q, how = exact[0][1:4], f"measured at exactly {g_count} ({exact[0][4]} runs)"
         else:
@@ -198,7 +231,7 @@ def _equal_count_table(rs, labels, scene, g_count: int, g_mse: float) -> list[st
                 near = min(cell, key=lambda c: abs(math.log(c[0] / g_count)))
                 v, how = near[1], f"nearest count measured: {near[0]}"
             q = (v, math.nan, math.nan)
-        md.append(f"| {lab} | {_ci(q)} | {_fmt(q[0] / g_mse, '.2f')} | {how} |")
+        md.append(f"| {_method(lab, at, twins)} | {_ci(q)} | {_fmt(q[0] / g_mse, '.2f')} | {how} |")
     return md
 
 
@@ -216,7 +249,7 @@ def _memory_tiers(rs: list[dict]) -> tuple[list[float], bool]:
     return ([float(np.median(ref))] if ref else []), False
 
 
-def _equal_memory_table(rs, labels, scene) -> list[str]:
+def _equal_memory_table(rs, labels, scene, twins: dict) -> list[str]:
     """Each method at equal bytes of probe data: runs with exactly that memory (geometric mean over them,
     95 % t-interval), or — when no two methods share a memory — each method's runs nearest to the grid's
     memory in log space, with their bytes shown."""
@@ -242,11 +275,13 @@ def _equal_memory_table(rs, labels, scene) -> list[str]:
             q = log_t_interval([v for r in at if (v := mse(r)) is not None])
             counts = ", ".join(map(str, sorted({r["n_probes"] for r in at})))
             how = "equal memory" if near == target else f"nearest memory measured ({near / target - 1:+.0%})"
-            md.append(f"| {lab} | {near / 1024:.1f} | {counts} | {len(at)} | {_ci(q)} | {how} |")
+            md.append(
+                f"| {_method(lab, at, twins)} | {near / 1024:.1f} | {counts} | {len(at)} | {_ci(q)} | {how} |"
+            )
     return md
 
 
-def _paired_table(rs, labels, scene, count: int) -> list[str]:
+def _paired_table(rs, labels, scene, count: int, twins: dict) -> list[str]:
     """At exactly ``count`` probes (exact budgets): each method ÷ the grid on the same seed, glossy and
     diffuse indirect, with the seed interval (:func:`seed_paired_ratio`) and the usable probes."""
     at = [r for r in rs if r["n_probes"] == count]
@@ -256,7 +291,8 @@ def _paired_table(rs, labels, scene, count: int) -> list[str]:
         f"## {scene}: exactly {count} probes, each seed against the grid's run on the same seed",
         "",
         "Geometric mean of method ÷ grid over seeds, 95 % t-interval in log space (an interval that "
-        "holds 1 cannot tell the method from the grid); usable = probes the bake found in free space.",
+        "holds 1 cannot tell the method from the grid); usable = probes the bake found in free space; "
+        "(= grid): the method placed bit-identical probes (`probes.json`) on every seed.",
         "",
         "| method | seeds | glossy ind. ÷ grid [95 %] | diffuse ind. ÷ grid [95 %] | usable probes |",
         "|---|---:|---|---|---|",
@@ -270,46 +306,76 @@ def _paired_table(rs, labels, scene, count: int) -> list[str]:
             pairs = [(v, w) for r in runs if (v := mse(r, key)) and (w := mse(grid[r["seed"]], key))]
             ratios.append(_ci(seed_paired_ratio(pairs), ".2f"))
         usable = sorted((r.get("eval") or {}).get("n_probes_usable", r["n_probes"]) for r in runs)
-        md.append(f"| {lab} | {len(runs)} | {ratios[0]} | {ratios[1]} | {', '.join(map(str, usable))} |")
+        md.append(
+            f"| {_method(lab, runs, twins)} | {len(runs)} | {ratios[0]} | {ratios[1]} "
+            f"| {', '.join(map(str, usable))} |"
+        )
     return md
 
 
-def _equal_time_table(rs, by, labels, scene, g_time: float, g_mse: float) -> list[str]:
-    """Each method's best MSE among its runs no slower (placement + bake, no compilation) than the grid."""
+def _equal_time_table(rs, labels, scene, g_time: float, g_count: int, g_mse: float, twins) -> list[str]:
+    """Each method's best cell (its runs at one probe count: geometric-mean MSE over seeds) among the cells
+    no slower (median placement + bake run time, no compilation) than the grid's cell at ``g_count``; the
+    grid's row is that cell itself, so the grid ÷ grid is 1 by construction."""
     md = [
         "",
         f"## {scene}: equal time (placement + bake run time ≤ {g_time:.1f} s, the grid's time)",
         "",
         "Run time without JIT compilation (`place_bake_run_s`): the compilation a sweep's first run "
-        "pays is shared by the runs after it and would otherwise decide this table.",
+        "pays is shared by the runs after it and would otherwise decide this table. A cell is a method's "
+        f"runs at one probe count; its time is their median, its {words(PRIMARY)} their geometric mean "
+        f"[95 % t-interval], as the grid's at {g_count} probes that ÷ grid divides by — so a lucky seed "
+        "does not decide the ranking, and the grid's row is its own cell (÷ grid 1.00).",
         "",
         *_unsplit_note(rs),
     ]
-    md += [f"| method | best {words(PRIMARY)} within the time | probes | ÷ grid |", "|---|---:|---:|---:|"]
-    for lab in labels:
-        ok = [r for r in by.get((scene, lab), []) if (v := run_s(r)) is not None and v <= g_time]
-        if ok:
-            b = min(ok, key=mse)
-            md.append(f"| {lab} | {_fmt(mse(b))} | {b['n_probes']} | {_fmt(mse(b) / g_mse, '.2f')} |")
+    md += [
+        f"| method | best {words(PRIMARY)} within the time [95 %] | probes | ÷ grid | runs | median run s |",
+        "|---|---:|---:|---:|---:|---:|",
+    ]
+    by_label = count_cells(rs)
+    for lab, by_n in ((lab, by_label.get(lab)) for lab in labels):
+        if not by_n:
+            continue
+        if lab == "grid":
+            ok = {g_count: by_n[g_count]}
         else:
-            times = [v for r in by.get((scene, lab), []) if (v := run_s(r)) is not None]
-            fastest = min(times, default=math.nan)
-            md.append(f"| {lab} | — (fastest run {fastest:.1f} s) | — | — |")
+            ok = {n: c for n, c in by_n.items() if (t := median_run_s(c)) is not None and t <= g_time}
+        if ok:
+            qs = {n: log_t_interval([mse(r) for r in c]) for n, c in ok.items()}
+            n = min(qs, key=lambda k: (qs[k][0], k))
+            md.append(
+                f"| {_method(lab, ok[n], twins)} | {_ci(qs[n])} | {n} | {_fmt(qs[n][0] / g_mse, '.2f')} "
+                f"| {len(ok[n])} | {_fmt(median_run_s(ok[n]), '.1f')} |"
+            )
+        else:
+            fastest = min((t for c in by_n.values() if (t := median_run_s(c)) is not None), default=math.nan)
+            md.append(f"| {lab} | — (fastest cell {fastest:.1f} s) | — | — | — | — |")
     return md
 
 
-def _equal_quality_table(by, labels, scene, g_mse: float) -> list[str]:
-    """Each method's fewest probes reaching the grid's MSE, with that run's time."""
+def _equal_quality_table(rs, labels, scene, g_mse: float, twins: dict) -> list[str]:
+    """Each method's fewest probes whose cell (geometric-mean MSE over its runs at that count) reaches the
+    grid's cell, with that cell's median run time."""
     md = ["", f"## {scene}: equal quality ({words(PRIMARY)} ≤ {g_mse:.3g}, the grid's)", ""]
     md += [
-        "| method | fewest probes reaching it | its placement + bake run s (no compilation) |",
+        "A method's runs at one probe count reach it when their geometric mean does (not its luckiest seed).",
+        "",
+        "| method | fewest probes reaching it "
+        "| its placement + bake run s (no compilation), median of its runs |",
         "|---|---:|---:|",
     ]
-    for lab in labels:
-        ok = [r for r in by.get((scene, lab), []) if mse(r) <= g_mse * (1 + 1e-9)]
+    by_label = count_cells(rs)
+    for lab, by_n in ((lab, by_label.get(lab)) for lab in labels):
+        if not by_n:
+            continue
+        ok = sorted(
+            n for n, c in by_n.items() if log_t_interval([mse(r) for r in c])[0] <= g_mse * (1 + 1e-9)
+        )
         if ok:
-            b = min(ok, key=lambda r: r["n_probes"])
-            md.append(f"| {lab} | {b['n_probes']} | {_fmt(run_s(b), '.1f')} |")
+            md.append(
+                f"| {_method(lab, by_n[ok[0]], twins)} | {ok[0]} | {_fmt(median_run_s(by_n[ok[0]]), '.1f')} |"
+            )
         else:
             md.append(f"| {lab} | not reached in these runs | — |")
     return md
@@ -323,12 +389,12 @@ def _grid_count(grid: list[dict]) -> int:
     return min(counts, key=lambda c: (abs(math.log(c / med)), c))
 
 
-def _scene_tables(runs: list[dict], labels: list[str], scene: str) -> list[str]:
+def _scene_tables(runs: list[dict], labels: list[str], scene: str, twins: dict) -> list[str]:
     """One scene's equal-count, equal-memory, equal-time and equal-quality tables (all but equal memory
-    measured against the grid's runs)."""
+    measured against the grid's cell at its count: the geometric mean of its runs there)."""
     rs = [r for r in runs if r["scene"] == scene and mse(r) is not None]
     grid = [r for r in rs if r["label"] == "grid"]
-    memory_md = _equal_memory_table(rs, labels, scene)
+    memory_md = _equal_memory_table(rs, labels, scene, twins)
     if not rs or not grid:
         return [
             "",
@@ -336,29 +402,49 @@ def _scene_tables(runs: list[dict], labels: list[str], scene: str) -> list[str]:
             *memory_md,
         ]
     g_count = _grid_count(grid)
-    g_times = [v for r in grid if (v := run_s(r)) is not None]
-    g_time = float(np.median(g_times)) if g_times else math.nan
-    g_mse = log_t_interval([mse(r) for r in grid if r["n_probes"] == g_count])[0]
-    by = group(rs)
+    g_cell = [r for r in grid if r["n_probes"] == g_count]
+    g_time = median_run_s(g_cell)
+    g_time = math.nan if g_time is None else g_time
+    g_mse = log_t_interval([mse(r) for r in g_cell])[0]
     paired = []
     for count in sorted({r["n_probes"] for r in grid}):  # exact budgets: every method at the grid's count
         if len({r["label"] for r in rs if r["n_probes"] == count}) > 1:
-            paired += _paired_table(rs, labels, scene, count)
+            paired += _paired_table(rs, labels, scene, count, twins)
     return (
         paired
-        + _equal_count_table(rs, labels, scene, g_count, g_mse)
+        + _equal_count_table(rs, labels, scene, g_count, g_mse, twins)
         + memory_md
-        + _equal_time_table(rs, by, labels, scene, g_time, g_mse)
-        + _equal_quality_table(by, labels, scene, g_mse)
+        + _equal_time_table(rs, labels, scene, g_time, g_count, g_mse, twins)
+        + _equal_quality_table(rs, labels, scene, g_mse, twins)
     )
 
 
 def _tables(runs: list[dict], labels: list[str]) -> list[str]:
     """The report's Markdown tables: every run, then per scene the grid-relative comparisons."""
     md = _all_runs_table(runs, labels)
+    twins = placement_twins(runs, labels)
     for scene in sorted({r["scene"] for r in runs}):
-        md += _scene_tables(runs, labels, scene)
+        md += _scene_tables(runs, labels, scene, twins)
     return md
+
+
+STABILITY_TEXT = (
+    "A run *fails* when its placement does not cover the whole surface (`coverage<100%`: short of 1 by "
+    "more than the tolerance of the search's `target_reached`), leaves probes inside geometry, its "
+    "refiner did not converge, its evaluated error is not finite, or its glossy or diffuse indirect "
+    "error is above a black image's (`…>black`: the probes add more wrong light than they recover). Runs "
+    "that stopped with an error or were refused leave no finished folder and are not in these tables. "
+    "Unresolved rays (the share of the evaluation's glossy rays the light-field tracer could not resolve; "
+    "they read the nearest probe's radiance in the ray direction, docs/evaluate.md) are a measured share, "
+    "not a failure: their own column, mean and range over the runs."
+)
+
+
+def _share_range(vs: list[float]) -> str:
+    """``mean (min – max)`` of shares as percentages; — when none."""
+    if not vs:
+        return "—"
+    return f"{np.mean(vs):.1%} ({min(vs):.1%} – {max(vs):.1%})"
 
 
 def _stability(runs: list[dict], labels: list[str]) -> list[str]:
@@ -366,22 +452,23 @@ def _stability(runs: list[dict], labels: list[str]) -> list[str]:
     g = group(runs)
     if all(len(v) < 2 for v in g.values()):
         return []
-    md = ["## Stability (spread over seeds and scene offsets)", ""]
+    md = ["## Stability (spread over seeds and scene offsets)", "", STABILITY_TEXT, ""]
     md += [
         "| scene | method | runs | failure rate | probes mean ± sd | coverage min "
-        f"| {words(PRIMARY)} [95 % t-interval] | failures |",
-        "|---|---|---:|---:|---:|---:|---:|---|",
+        f"| unresolved rays mean (min – max) | {words(PRIMARY)} [95 % t-interval] | failures |",
+        "|---|---|---:|---:|---:|---:|---:|---:|---|",
     ]
     for (scene, lab), rs in sorted(g.items(), key=lambda kv: (kv[0][0], labels.index(kv[0][1]))):
         n = np.array([r["n_probes"] for r in rs], float)
-        cov = [r["coverage"] for r in rs if r.get("coverage") is not None]
-        fails = [f for r in rs for f in r.get("failures", [])]
-        rate = sum(bool(r.get("failures")) for r in rs) / len(rs)
+        worst = min((r for r in rs if full_coverage(r) is not None), key=lambda r: r["coverage"], default={})
+        fails = [f for r in rs for f in run_failures(r)]
+        rate = sum(bool(run_failures(r)) for r in rs) / len(rs)
         mse_s = _ci(log_t_interval([v for r in rs if (v := mse(r)) is not None]))
         counts = ", ".join(f"{k} ×{fails.count(k)}" for k in sorted(set(fails))) or "none"
+        unres = _share_range([v for r in rs if (v := unresolved(r)) is not None])
         md.append(
             f"| {scene} | {lab} | {len(rs)} | {rate:.0%} | {n.mean():.1f} ± {n.std():.1f} "
-            f"| {_fmt(min(cov) if cov else None, '.4f')} | {mse_s} | {counts} |"
+            f"| {_coverage(worst)} | {unres} | {mse_s} | {counts} |"
         )
     if len({pose(r) for r in runs}) > 1:
         md += ["", "### By perturbation of the scene against the grid", ""]
@@ -397,7 +484,7 @@ def _stability(runs: list[dict], labels: list[str]) -> list[str]:
                     continue
                 cov = np.array([r["coverage"] for r in ps if r.get("coverage") is not None])
                 n = [r["n_probes"] for r in ps]
-                rate = sum(bool(r.get("failures")) for r in ps) / len(ps)
+                rate = sum(bool(run_failures(r)) for r in ps) / len(ps)
                 cov_s = f"{cov.mean():.4f} ({cov.min():.4f} – {cov.max():.4f})" if len(cov) else "—"
                 md.append(
                     f"| {scene} | {lab} | {p_name} | {len(ps)} | {rate:.0%} | {cov_s} | {min(n)} – {max(n)} |"

@@ -5,7 +5,9 @@ the axes themselves; :func:`save_figure` writes and closes one. Every figure has
 words (``_report_data.METRIC_WORDS``) and a legend in every panel that draws more than one series. A
 cell of several runs (seeds, scene offsets) at one probe count or memory is drawn at its geometric mean
 with its 95 % Student-t interval in log space as an error bar (``_report_data.cells``); probe counts
-and memory run over decades, so those axes are logarithmic.
+and memory run over decades, so those axes are logarithmic. Methods measured at the same count or memory
+are drawn side by side — each series nudged along the log axis by a small fixed step (:func:`dodge`) and
+with its own marker — so that one never hides another.
 """
 
 from __future__ import annotations
@@ -34,6 +36,19 @@ from ._report_data import (
 )
 
 LEGEND = {"fontsize": 7, "framealpha": 0.8}
+MARKERS = "osD^vP<X>*"  # one per method (in label order), cycled
+#: Horizontal dodge between neighbouring series, as a share of the log axis' span (about 6 px on a
+#: 440 px panel: a marker's width, so equal counts sit side by side).
+DODGE_STEP = 0.014
+
+
+def dodge(i: int, k: int, xs) -> float:
+    """Factor for the x values of series ``i`` of ``k`` on a log axis over ``xs``: series spread
+    symmetrically around the measured value, neighbours :data:`DODGE_STEP` of the axis' span apart
+    (the span in decades, at least one decade)."""
+    xs = [float(x) for x in xs if x > 0]
+    span = max(math.log10(max(xs) / min(xs)), 1.0) if xs else 1.0
+    return 10.0 ** ((i - (k - 1) / 2) * DODGE_STEP * span)
 
 
 def save_figure(fig, path: Path, dpi: int = 110) -> Path:
@@ -53,14 +68,24 @@ def colours(labels: list[str]) -> dict:
     return {lab: cmap(i % 20) for i, lab in enumerate(labels)}
 
 
-def _errorbars(ax, cell: list, colour, label: str) -> None:
-    """One series of (x, mean, lo, hi, n) cells: points joined by a line, a 95 % bar where n ≥ 2."""
-    x = np.array([c[0] for c in cell], np.float64)
+def _errorbars(ax, cell: list, colour, label: str, factor: float = 1.0, marker: str = "o") -> None:
+    """One series of (x, mean, lo, hi, n) cells: points joined by a line, a 95 % bar where n ≥ 2; x
+    multiplied by ``factor`` (:func:`dodge`)."""
+    x = np.array([c[0] for c in cell], np.float64) * factor
     m = np.array([c[1] for c in cell], np.float64)
     lo = np.array([c[2] for c in cell], np.float64)
     hi = np.array([c[3] for c in cell], np.float64)
     err = np.stack([np.where(np.isfinite(lo), m - lo, 0.0), np.where(np.isfinite(hi), hi - m, 0.0)])
-    ax.errorbar(x, m, yerr=err, fmt="o-", color=colour, label=label, ms=4, capsize=3, lw=1.2)
+    ax.errorbar(x, m, yerr=err, fmt=f"{marker}-", color=colour, label=label, ms=4.5, capsize=2.5, lw=1.2)
+
+
+def _dodged_series(ax, series: dict, labels: list[str], col: dict) -> None:
+    """Every label's cells as error bars, side by side (:func:`dodge`), one marker per label."""
+    drawn = [lab for lab in labels if lab in series]
+    xs = [c[0] for cell in series.values() for c in cell]
+    for i, lab in enumerate(drawn):
+        marker = MARKERS[labels.index(lab) % len(MARKERS)]
+        _errorbars(ax, series[lab], col[lab], lab, dodge(i, len(drawn), xs), marker)
 
 
 def _log_axis(ax, xs) -> None:
@@ -94,9 +119,7 @@ def _seed_note(runs: list[dict]) -> str:
 def _mse_count_panel(ax, rs: list[dict], labels, col, key: str, scene: str) -> None:
     """One panel: ``key`` against the probe count, one error-bar series per method."""
     series = cells(rs, lambda r: r["n_probes"], lambda r: mse(r, key))
-    for lab in labels:
-        if lab in series:
-            _errorbars(ax, series[lab], col[lab], lab)
+    _dodged_series(ax, series, labels, col)
     floor = [v for r in rs if (v := mse(r, key.replace("mse_", "noise_floor_"))) is not None]
     if floor:
         ax.axhline(
@@ -107,7 +130,7 @@ def _mse_count_panel(ax, rs: list[dict], labels, col, key: str, scene: str) -> N
         ax.axhline(float(np.median(black)), ls=":", c="r", lw=1.0, label=words(f"mse_black_{key[4:]}"))
     _log_axis(ax, [c[0] for cell in series.values() for c in cell])
     ax.set_yscale("log")
-    ax.set_xlabel(f"{words('n_probes')} (log scale)")
+    ax.set_xlabel(f"{words('n_probes')} (log scale; methods at one count side by side)")
     ax.set_ylabel(words(key))
     ax.set_title(f"{scene}: {words(key)}", fontsize=10)
     ax.legend(**LEGEND)
@@ -185,9 +208,7 @@ def fig_memory(runs: list[dict], labels: list[str], col: dict):
     plt = load_pyplot()
     fig, ax = plt.subplots(figsize=(5.8, 4.4), constrained_layout=True)
     series = cells(rs, lambda r: memory(r) / 1024, mse)
-    for lab in labels:
-        if lab in series:
-            _errorbars(ax, series[lab], col[lab], lab)
+    _dodged_series(ax, series, labels, col)
     _log_axis(ax, [c[0] for cell in series.values() for c in cell])
     ax.set_yscale("log")
     ax.set_xlabel(f"{words('memory_bytes')} (log scale)")

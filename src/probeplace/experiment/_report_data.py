@@ -10,6 +10,9 @@ written once here and used by both the charts (``_report_charts``) and the table
 * :func:`seed_paired_ratio`: :func:`log_t_interval` of method ÷ grid, one ratio per seed.
 
 :data:`METRIC_WORDS` is the one mapping from metric keys to the words figures and tables print.
+
+A run's failures and its coverage verdict are the runner's (``_run.failures``, ``placement.reaches_target``),
+re-judged on every record by :func:`run_failures` so that older runs follow the current criteria.
 """
 
 from __future__ import annotations
@@ -170,6 +173,79 @@ def leak_share(r: dict) -> float | None:
     e = r.get("eval") or {}
     n, judged = _num(e.get("light_leak_pixels")), _num(e.get("light_leak_judged_pixels"))
     return None if n is None or not judged else n / judged
+
+
+def run_failures(r: dict) -> list[str]:
+    """The run's failures judged now by the runner's criteria (``_run.failures``) — not the list stored
+    in its metrics.json, which an older runner judged by older criteria."""
+    from ._run import failures
+
+    return failures(r)
+
+
+def unresolved(r: dict) -> float | None:
+    """Share of the evaluation's light-field rays the tracer could not resolve (``_run.unresolved_share``)."""
+    from ._run import unresolved_share
+
+    return unresolved_share(r.get("eval") or {})
+
+
+def full_coverage(r: dict) -> bool | None:
+    """Whether the run's coverage is full by ``placement.reaches_target`` (the tolerance of
+    ``target_reached``); None when the run has no coverage."""
+    from ..placement._auto import reaches_target
+
+    c = _num(r.get("coverage"))
+    return None if c is None else reaches_target(c)
+
+
+def median_run_s(rs: list[dict]) -> float | None:
+    """Median placement + bake run time (:func:`run_s`) of a cell's runs; None when none has one."""
+    t = [v for r in rs if (v := run_s(r)) is not None]
+    return float(np.median(t)) if t else None
+
+
+def count_cells(rs: list[dict]) -> dict:
+    """label → {probe count: its runs} (runs with a positive, finite MSE: a geometric mean exists)."""
+    out: dict = defaultdict(lambda: defaultdict(list))
+    for r in rs:
+        if (v := mse(r)) is not None and v > 0:
+            out[r["label"]][r["n_probes"]].append(r)
+    return out
+
+
+def _placement_key(r: dict) -> tuple:
+    """Runs that could share a placement: same scene, pose, seed and probe count."""
+    return (r["scene"], tuple(r.get("translate_frac") or ()), r.get("rotate_deg"), r["seed"], r["n_probes"])
+
+
+def placement_twins(runs: list[dict], labels: list[str]) -> dict:
+    """run name → the label of an earlier method (in ``labels`` order) whose run on the same scene, pose,
+    seed and probe count placed bit-identical probes (the active positions of ``probes.json``, in any
+    order) — e.g. the LOD grid at a count where it is the uniform grid. Runs without a twin are absent."""
+    from .._core import load_probe_set
+
+    def positions(r):
+        probes, _ = load_probe_set(r["dir"] / "probes.json")
+        p = np.asarray(probes.pos_world)[np.asarray(probes.active)]
+        return p[np.lexsort(p.T[::-1])]
+
+    by = defaultdict(list)
+    for r in runs:
+        if (r["dir"] / "probes.json").is_file():
+            by[_placement_key(r)].append(r)
+    twins = {}
+    for group_ in by.values():
+        if len({r["label"] for r in group_}) < 2:
+            continue
+        group_.sort(key=lambda r: labels.index(r["label"]))
+        pos = [positions(r) for r in group_]
+        for i, r in enumerate(group_):
+            for j in range(i):
+                if group_[j]["label"] != r["label"] and np.array_equal(pos[i], pos[j]):
+                    twins[r["run"]] = twins.get(group_[j]["run"], group_[j]["label"])
+                    break
+    return twins
 
 
 def pareto_front(points: list) -> list[int]:

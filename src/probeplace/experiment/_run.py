@@ -654,19 +654,27 @@ def unresolved_share(ev: dict) -> float | None:
 
 
 def failures(m: dict) -> list[str]:
-    """Failure cases of the stability study: coverage < 100%, probes inside geometry (negative SDF or
-    the bake's inside test), unresolved rays > 1%, optimiser not converged (each only when the run
-    measured it)."""
+    """Failure cases of the stability study: coverage < 100% (``placement.reaches_target``, the
+    tolerance of ``target_reached``), probes inside geometry (negative SDF or the bake's inside test),
+    optimiser not converged, an evaluated error that is not finite or, per indirect component, above a
+    black image's (each only when the run measured it). Unresolved rays are a share, not a failure."""
+    from ..placement._auto import reaches_target
+
     out = []
-    if m.get("coverage") is not None and m["coverage"] < 1.0 - 1e-9:
+    if m.get("coverage") is not None and not reaches_target(m["coverage"]):
         out.append("coverage<100%")
     if m.get("inside_geometry") or m.get("inside_bake"):
         out.append("inside-geometry")
-    u = unresolved_share(m.get("eval", {}) or {})
-    if u is not None and u > 0.01:
-        out.append("unresolved>1%")
     if m.get("converged") is False:
         out.append("not-converged")
+    e = m.get("eval") or {}
+    mses = [e[k] for k in ("mse_glossy_indirect", "mse_diffuse_indirect", "mse_full") if k in e]
+    if not all(isinstance(v, int | float) and np.isfinite(v) for v in mses):
+        out.append("error-not-finite")
+    for c in ("glossy_indirect", "diffuse_indirect"):  # more wrong light than the probes recover
+        v, black = e.get(f"mse_{c}"), e.get(f"mse_black_{c}")
+        if isinstance(v, int | float) and isinstance(black, int | float) and v > black:
+            out.append(f"{c.replace('_', '-')}>black")
     return out
 
 

@@ -48,6 +48,16 @@ from ._seeds import medial_axis_seeds, skeleton_seeds
 
 log = logging.getLogger(__name__)
 
+#: Relative tolerance of "the target is reached": a coverage share within this of the target counts
+#: (numerically "all" for a target of 1). The one tolerance for ``target_reached`` and the runner's
+#: ``coverage<100%`` failure (:func:`reaches_target`).
+COVERAGE_RTOL = 1e-9
+
+
+def reaches_target(coverage: float, target: float = 1.0) -> bool:
+    """Whether a coverage share reaches ``target`` up to :data:`COVERAGE_RTOL` (``target_reached``)."""
+    return float(coverage) >= float(target) * (1.0 - COVERAGE_RTOL)
+
 
 @dataclasses.dataclass(frozen=True)
 class AutoResult:
@@ -301,7 +311,7 @@ def _coverable(problem: PlacementProblem, target: float, caster) -> _Coverable:
     a = a_all[cols]
     total = a.sum()
     # Numerically "all": a target of 1 means every coverable sample.
-    target_area = target * total * (1.0 - 1e-9)
+    target_area = target * total * (1.0 - COVERAGE_RTOL)
     timings = {"visibility_s": 0.0}
     return _Coverable(problem, caster, cols, a_all, a, total, target, target_area, timings)
 
@@ -324,7 +334,8 @@ def _coarse_pass(
         sub = _search_subset(sub, int(search_samples), np.asarray(cov.problem.position)[cov.cols], rng)
     v_sub = _visibility(cov, cand, sub)
     seen_sub = np.zeros(len(sub), bool)
-    chosen = _greedy(v_sub, cov.a[sub], seen_sub, cov.target * cov.a[sub].sum() * (1.0 - 1e-9), limit=limit)
+    goal = cov.target * cov.a[sub].sum() * (1.0 - COVERAGE_RTOL)
+    chosen = _greedy(v_sub, cov.a[sub], seen_sub, goal, limit=limit)
     return chosen, len(sub) == len(cov.cols)
 
 

@@ -16,7 +16,7 @@ import numpy as np
 
 from .._core import Scene, load_pyplot, stream
 from ..geometry import AbstractRayCaster, build_sdf
-from ._auto import auto_budget
+from ._auto import auto_budget, reaches_target
 from ._binary import binary_coverage, binary_visibility
 from ._finish import coverage_context, make_usable, probe_set, refine_problem, valid_settings
 from ._fitness import FitnessConfig, probe_clearance
@@ -138,7 +138,8 @@ def _place_seeded(
         timings=timings,
         refine_status=res.refine_status,
         refined=bool(res.refined) if res.refine_status is not None else False,
-        target_reached=res.reached,
+        # judged on the final set: relocating or refilling probes can lose a sliver of the coverage
+        target_reached=reaches_target(coverage, r.target) if changed else res.reached,
         min_probe_clearance=float(clear.min()) if len(clear) else None,
         info={
             **_problem_record(problem, grid),
@@ -211,7 +212,7 @@ def smallest_full_grid(problem, *, max_probes: int = 4096, target: float = 1.0) 
         if len(pos) > max_probes:
             return -1, 0.0, dims
         cov = binary_coverage(problem, binary_visibility(problem, pos))
-        if cov >= target * (1 - 1e-9):
+        if reaches_target(cov, target):
             return len(pos), cov, dims
 
 

@@ -6,6 +6,7 @@ Every loader and built-in scene goes through :func:`build_scene`, so input check
 from __future__ import annotations
 
 import logging
+import os
 from collections.abc import Sequence
 
 import jax.numpy as jnp
@@ -23,6 +24,25 @@ MAX_COORDINATE = 1e18
 MIN_EXTENT = 1e-15
 # Corner normals are averaged only over faces within this angle (hard edges stay hard).
 CREASE_ANGLE_DEG = 30.0
+# What this process has already warned about a scene file: (path, mtime, size, message).
+_warned: set[tuple] = set()
+
+
+def _warn_once(source: str, msg: str, *args) -> None:
+    """``log.warning(msg, *args)`` the first time for a scene file (by path, modification time and
+    size) in this process, ``log.debug`` after: the runner loads one file for its early checks and again
+    for every run, and the report for every view. In-memory sources always warn."""
+    try:
+        st = os.stat(source)
+    except (OSError, ValueError):
+        log.warning(msg, *args)
+        return
+    key = (os.path.realpath(source), st.st_mtime_ns, st.st_size, msg % args)
+    if key in _warned:
+        log.debug(msg, *args)
+        return
+    _warned.add(key)
+    log.warning(msg, *args)
 
 
 def make_materials(
@@ -170,8 +190,12 @@ def _drop_degenerate(v64: np.ndarray, faces, tri_material, tri_part, source: str
     if degenerate.all():
         raise SceneError(f"{source}: all {len(faces)} triangles are degenerate (zero area)")
     if degenerate.any():
-        log.warning(
-            "%s: dropped %d degenerate (zero-area) triangles of %d", source, int(degenerate.sum()), len(faces)
+        _warn_once(
+            source,
+            "%s: dropped %d degenerate (zero-area) triangles of %d",
+            source,
+            int(degenerate.sum()),
+            len(faces),
         )
         keep = ~degenerate
         faces, tri_material, tri_part = faces[keep], tri_material[keep], tri_part[keep]
@@ -188,7 +212,9 @@ def _drop_duplicates(v64: np.ndarray, faces, tri_material, tri_part, source: str
     canon = np.take_along_axis(corners, (lead[:, None] + np.arange(3)[None]) % 3, axis=1)
     _, first = np.unique(canon, axis=0, return_index=True)
     if len(first) < len(faces):
-        log.warning("%s: dropped %d duplicate triangles of %d", source, len(faces) - len(first), len(faces))
+        _warn_once(
+            source, "%s: dropped %d duplicate triangles of %d", source, len(faces) - len(first), len(faces)
+        )
         keep = np.sort(first)
         faces, tri_material, tri_part = faces[keep], tri_material[keep], tri_part[keep]
     return faces, tri_material, tri_part
