@@ -101,3 +101,15 @@ def test_run_refuses_an_unwritable_results_folder_before_loading_the_scene(tmp_p
     ):
         run({"results_dir": str(blocker / "results"), "eval": {"enabled": False}})
     assert sorted(p.name for p in tmp_path.iterdir()) == ["file"]
+
+
+def test_a_view_camera_inside_a_solid_is_refused_before_any_run(room, no_slow_work):
+    """The runner's precheck holds the evaluate command's camera check (issue 31): a view inside the lamp
+    box of the room is refused naming the overrides key and the camera, before any caster, bake or run."""
+    from tests.scene.sidecar_util import LAMP
+
+    inside = [(a + b) / 2 for a, b in zip(*LAMP, strict=True)]
+    cams = {"door": DOOR, "lamp": {"position": inside, "look_at": [2.0, 0.2, 4.0]}}
+    with pytest.raises(ConfigError, match=r"cameras\.lamp: position .* is inside solid geometry"):
+        check_scenes([_cfg(room, {**LIGHT, "cameras": cams}, eval={"view": "lamp"})])
+    check_scenes([_cfg(room, {**LIGHT, "cameras": {"door": DOOR}}, eval={"view": "door"})])  # free: passes

@@ -11,6 +11,7 @@ from ._evaluate import EvalResult as EvalResult
 from ._evaluate import evaluate as evaluate
 from ._evaluate import memory_bytes as memory_bytes
 from ._evaluate import score as score
+from ._scene_checks import check_views_and_lights as check_views_and_lights
 from ._steps import CrnReference as CrnReference
 from ._steps import PerfectTrace as PerfectTrace
 from ._steps import PrimarySamples as PrimarySamples

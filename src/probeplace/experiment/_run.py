@@ -401,21 +401,33 @@ def _needs_light(cfg: ExperimentConfig) -> bool:
 def check_scenes(cfgs: Iterable[ExperimentConfig]) -> None:
     """Check, before any run starts, what only the loaded scene can tell: each scene of ``cfgs`` loads
     (sidecar and ``scene.overrides`` included; loaded once, unmoved), has light when its run bakes or
-    evaluates, and has the run's ``eval.view``.
+    evaluates, and has the run's ``eval.view``, whose camera is in free space (a light that reaches no
+    surface the views see is warned about).
 
     Raises:
         SceneError: a scene that cannot be loaded, or has no light (the message names the sidecar keys).
-        ConfigError: ``eval.view: scene ... has no view ...; views: [...]``.
+        ConfigError: ``eval.view: scene ... has no view ...; views: [...]``, or a view camera inside solid
+            geometry.
     """
     import json
 
+    from ..evaluate import check_views_and_lights
+
     loaded: dict[tuple, Any] = {}
+    checked: set[tuple] = set()
     for cfg in cfgs:
         overrides = json.dumps(cfg.scene.overrides, sort_keys=True, default=str)
         key = (cfg.scene.name, overrides, _needs_light(cfg))
         if key not in loaded:
             loaded[key] = _load_unmoved(cfg.scene, key[2])
         _check_view(cfg, loaded[key])
+        # The evaluate command's checks (a view camera inside a solid: refused; a light that reaches no
+        # surface the views see: warned), once per scene and view; host-side Embree rays, no JAX.
+        if cfg.eval.enabled and (key, cfg.eval.view) not in checked:
+            checked.add((key, cfg.eval.view))
+            check_views_and_lights(
+                loaded[key], cfg.scene.name, dict(cfg.scene.overrides or {}) or None, view=cfg.eval.view
+            )
 
 
 def _placer_budget(cfg: ExperimentConfig, scene) -> int | str:
