@@ -179,6 +179,8 @@ def _cmd_place(args: argparse.Namespace) -> int:
     """Place probes (``placement.place``), write the top view and then the probe set (last: a probe set
     on disk means the command finished)."""
     from ._core import save_probe_set
+    from ._core._checks import check_writable_file
+    from ._core._io import naming_the_file
     from .placement import place, save_top_view
     from .scene import load_scene, scene_overrides_from_args
 
@@ -186,12 +188,9 @@ def _cmd_place(args: argparse.Namespace) -> int:
     # vardis path-traces its dense probes: a scene without light is refused by the load, naming the method
     needs_light = "--method vardis" if args.method == "vardis" else False
     scene = load_scene(args.scene, overrides=scene_overrides_from_args(args), require_light=needs_light)
-    if args.memory_budget is not None:
-        from .placement import count_for_memory
-        from .probes import BakeConfig, probe_bytes
-
-        bake = BakeConfig(radiance_res=args.radiance_res, geometry_res=args.geometry_res)
-        budget = count_for_memory(args.memory_budget, probe_bytes(scene, bake))
+    budget = _budget_that_fits(args, scene, budget)
+    if budget != "auto":  # room for the probe set: ≥ ~32 bytes a probe (3 numbers, a flag, a line each)
+        check_writable_file(out, "--out", size=32 * budget)
     res = place(
         scene,
         method=args.method,
@@ -206,13 +205,33 @@ def _cmd_place(args: argparse.Namespace) -> int:
     )
     summary = f"{res.n_probes} probes, coverage {res.coverage:.4f}"
     try:
-        save_top_view(scene, res.probes.pos_world, png, title=f"{args.scene}: {summary}")
+        with naming_the_file(png):  # a full disk fails savefig's write() naming no file
+            save_top_view(scene, res.probes.pos_world, png, title=f"{args.scene}: {summary}")
         save_probe_set(out, res.probes, units_m=scene.unit_m, metadata={**res.metadata, "scene": args.scene})
     except BaseException:  # interrupted or failed: leave no top view without its probe set
         png.unlink(missing_ok=True)
         raise
     print(f"{summary}, {res.timings['total_s']:.1f} s -> {out}, {png}")
     return 0
+
+
+def _budget_that_fits(args: argparse.Namespace, scene, budget):
+    """The probe count of ``--memory-budget``, or ``--budget`` checked against memory (issue 31: a count
+    whose baked maps cannot fit ran for minutes first), both at the bake settings of ``--radiance-res``
+    and ``--geometry-res`` (else the scene's default); ``auto`` unchanged. Before any placement."""
+    if budget == "auto" and args.memory_budget is None:
+        return budget
+    from .placement import check_probe_count, count_for_memory
+    from .probes import BakeConfig, default_radiance_res, probe_bytes
+
+    res = args.radiance_res or default_radiance_res(scene)
+    bake = BakeConfig(radiance_res=res, geometry_res=args.geometry_res or res)
+    if args.memory_budget is not None:
+        return count_for_memory(args.memory_budget, probe_bytes(scene, bake))
+    settings = f"radiance_res={bake.radiance_res}, geometry_res={bake.geometry_res}"
+    fix = "lower --budget, or give --memory-budget SIZE for the most probes that fit"
+    check_probe_count(budget, probe_bytes(scene, bake), f"--budget {budget}", settings, fix)
+    return budget
 
 
 def _checked_place_args(args: argparse.Namespace):
@@ -226,7 +245,14 @@ def _checked_place_args(args: argparse.Namespace):
     if args.memory_budget is not None:
         if budget != "auto":
             raise ProbeplaceError("give --budget or --memory-budget, not both")
-        parse_bytes(args.memory_budget)
+        from ._core._errors import check_memory
+
+        # the maps of the probes filling it must fit in memory themselves (issue 31: "1TB")
+        check_memory(
+            parse_bytes(args.memory_budget),
+            f"--memory-budget {args.memory_budget}: baking the probes that fill it",
+            "give a SIZE under the limit",
+        )
         from .probes import BakeConfig
 
         BakeConfig(radiance_res=args.radiance_res, geometry_res=args.geometry_res)
@@ -423,11 +449,13 @@ def _add_place_parser(sub) -> None:
     pl.set_defaults(func=_cmd_place)
 
 
-def _os_error_text(e: OSError) -> str:
-    """An OSError as one line: what failed on which file (``Permission denied: out/p.json``)."""
+def _os_error_text(e: OSError, out=None) -> str:
+    """An OSError as one line: what failed on which file (``Permission denied: out/p.json``). One that
+    names no file (a full disk's ENOSPC from a ``write()`` call) names the command's ``--out``."""
     if e.filename is not None and e.strerror:
         return f"{e.strerror}: {e.filename}"
-    return str(e) or type(e).__name__
+    text = e.strerror or str(e) or type(e).__name__
+    return f"{text} (while writing {out})" if out is not None else text
 
 
 def _configure(args: argparse.Namespace) -> None:
@@ -448,6 +476,7 @@ def main(argv: list[str] | None = None) -> int:
     process ends there). Neither prints a traceback."""
     from ._core._interrupt import interruptible
 
+    args = None
     try:
         with interruptible():
             parser = build_parser()
@@ -459,7 +488,7 @@ def main(argv: list[str] | None = None) -> int:
     except ProbeplaceError as e:  # user-facing errors: one clear line, no traceback
         return _fail(str(e))
     except OSError as e:  # a file the user named could not be read or written
-        return _fail(_os_error_text(e))
+        return _fail(_os_error_text(e, getattr(args, "out", None)))
     except KeyboardInterrupt:
         print("probeplace: interrupted", file=sys.stderr, flush=True)
         if argv is None:  # the process's own command: end now, before interpreter shutdown meets

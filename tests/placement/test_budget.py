@@ -67,6 +67,36 @@ def test_bad_memory_sizes_name_the_problem(bad):
         parse_bytes(bad)
 
 
+# Issue 31: decimal and binary units up to peta, any case, an exponent; the expected bytes written out.
+SIZES = [
+    ("1TB", 10**12), ("1tb", 10**12), ("1 tB", 10**12), ("1.5TB", 1_500_000_000_000),
+    ("1TiB", 2**40), ("1tib", 2**40), ("1 TIB", 2**40), ("1PB", 10**15), ("1PiB", 2**50),
+    ("2GB", 2 * 10**9), ("2gb", 2 * 10**9), ("2gib", 2**31), ("0.5 GiB", 2**29), (" 8 GiB ", 2**33),
+    ("64MB", 64 * 10**6), ("64mb", 64 * 10**6), ("64MiB", 2**26), ("64mib", 2**26),
+    ("64kB", 64_000), ("64KB", 64_000), ("64kb", 64_000), ("64KiB", 65_536), ("64kib", 65_536),
+    ("4096B", 4096), ("4096 b", 4096), ("1e9", 10**9), ("1e3MB", 10**9), ("2.5e-3GB", 2_500_000),
+]  # fmt: skip
+
+
+@pytest.mark.parametrize(("text", "want"), SIZES, ids=[t for t, _ in SIZES])
+def test_memory_size_table(text, want):
+    assert parse_bytes(text) == want
+
+
+@pytest.mark.parametrize(
+    ("bad", "why"),
+    [
+        ("64Mb", "reads as bits"), ("1Gib", "reads as bits"), ("1Tb", "reads as bits"),
+        ("1G", "'G' alone is ambiguous"), ("1t", "'t' alone is ambiguous"), ("1 TeB", "such as '64MiB'"),
+        ("1..5GB", "such as '64MiB'"), ("1GB2", "such as '64MiB'"), ("0KB", "positive"), ("0.1B", "positive"),
+    ],
+)  # fmt: skip
+def test_memory_sizes_refused_with_the_reason(bad, why):
+    with pytest.raises(ConfigError, match="memory budget") as info:
+        parse_bytes(bad)
+    assert why in str(info.value)
+
+
 def test_memory_budget_becomes_a_count():
     assert count_for_memory("1MiB", 100_000) == 10
     with pytest.raises(ConfigError, match="smaller than one probe"):

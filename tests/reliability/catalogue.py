@@ -451,7 +451,7 @@ CATALOGUE: list[Entry] = [
         "PLY cut off inside the header",
         _load_bytes("cut.ply", _cut(".ply", 0.3)),
         SceneError,
-        r"could not read the PLY file",
+        r"cut\.ply: not a PLY file, or a corrupt or truncated one: its header has no end_header line",
     ),
     Entry(
         "truncated-body.ply",
@@ -459,7 +459,7 @@ CATALOGUE: list[Entry] = [
         "PLY cut off before its faces",
         _load_bytes("cut2.ply", lambda: tet_ply().split("3 0 2 1")[0].encode()),
         SceneError,
-        r"no triangles|could not read the PLY file",
+        r"cut2\.ply: truncated PLY: line 7 declares 4 face rows, the file ends after 0",
     ),
     Entry(
         "truncated.gltf",
@@ -486,7 +486,7 @@ CATALOGUE: list[Entry] = [
             SceneError,
             {
                 ".obj": "corrupt OBJ: binary data",
-                ".ply": r"could not read the PLY file \(ValueError: Not a ply",
+                ".ply": r"not a PLY file, or a corrupt or truncated one: no 'ply' first line",
                 ".glb": r"not a GLB file \(magic b'\\x89PNG'",
                 ".gltf": "corrupt glTF: the JSON does not parse",
             }[e],
@@ -500,7 +500,7 @@ CATALOGUE: list[Entry] = [
             f"zero-byte {e} file",
             _load_bytes(f"empty{e}", b""),
             SceneError,
-            r"no triangles|truncated GLB: 0 bytes|corrupt glTF|could not read",
+            r"no triangles|truncated GLB: 0 bytes|corrupt glTF|could not read|not a PLY file",
         )
         for e in (".obj", ".ply", ".glb", ".gltf")
     ],
@@ -518,7 +518,7 @@ CATALOGUE: list[Entry] = [
         "OBJ face referencing a vertex that does not exist",
         _load_bytes("idx.obj", tet_obj() + "f 1 2 9\n"),
         SceneError,
-        r"could not read the OBJ file",
+        r"idx\.obj:9: face uses vertex 9 but the file defines 4 vertices",
     ),
     Entry(
         "directory-as-scene",
@@ -1125,6 +1125,119 @@ CATALOGUE: list[Entry] = [
         _runner({"bake": {"radiance_res": 65536}}),
         ResourceError,
         r"bake\.radiance_res=65536, .*one probe's bake needs",
+    ),
+]
+
+
+# ------------------------------------------- parse errors at any byte, sizes, disk space (issue 31)
+def _place_budget(n: int):
+    """``place --method grid --budget n`` up to the memory check made once the scene is loaded."""
+
+    def run(c):
+        from probeplace.cli import _budget_that_fits, build_parser
+
+        args = build_parser().parse_args(["place", "cornell_box", "--method", "grid", "--budget", str(n)])
+        return _budget_that_fits(args, cornell(), n)
+
+    return run
+
+
+def _disk_full(c):
+    """``--out`` on a file system with no free bytes (``shutil.disk_usage`` stands in for a full disk)."""
+    import shutil
+    from unittest import mock
+
+    from probeplace._core._checks import check_writable_file
+
+    full = shutil._ntuple_diskusage(10**9, 10**9, 0)
+    with mock.patch("shutil.disk_usage", return_value=full):
+        return check_writable_file(c.tmp / "p.json", "--out")
+
+
+def tet_ply_binary(order: str = "<") -> bytes:
+    """The tetrahedron as a binary PLY, little-endian (``"<"``) or big-endian (``">"``)."""
+    fmt = {"<": "binary_little_endian", ">": "binary_big_endian"}[order]
+    head = (
+        f"ply\nformat {fmt} 1.0\nelement vertex 4\nproperty float x\nproperty float y\n"
+        "property float z\nelement face 4\nproperty list uchar int vertex_indices\nend_header\n"
+    ).encode()
+    faces = b"".join(b"\x03" + row.astype(order + "i4").tobytes() for row in TET_F)
+    return head + TET_V.astype(order + "f4").tobytes() + faces
+
+
+CATALOGUE += [
+    Entry(
+        "cut-vertex.obj",
+        "scene file",
+        "OBJ whose last line is cut mid-vertex (`v 1.0 2.`)",
+        _load_bytes("cut3.obj", lambda: (tet_obj() + "v 1.0 2.").encode()),
+        SceneError,
+        r"cut3\.obj:9: vertex 'v 1\.0 2\.' has 2 numbers, needs 3–7: truncated or corrupt OBJ",
+    ),
+    Entry(
+        "face-past-vertices.obj",
+        "scene file",
+        "OBJ face using a vertex the file does not define (cut before its last vertex)",
+        _load_bytes("few.obj", lambda: tet_obj().replace("v 0.0 0.0 1.0\n", "").encode()),
+        SceneError,
+        r"few\.obj:\d+: face uses vertex 4 but the file defines 3 vertices",
+    ),
+    Entry(
+        "cut-row.ply",
+        "scene file",
+        "ASCII PLY whose last face row is cut",
+        _load_bytes("cut3.ply", lambda: tet_ply()[:-4].encode()),
+        SceneError,
+        r"cut3\.ply:17: face row '3 1' does not match the header's properties \(line 7\)",
+    ),
+    Entry(
+        "cut-binary.ply",
+        "scene file",
+        "binary PLY one byte short",
+        _load_bytes("cut4.ply", lambda: tet_ply_binary()[:-1]),
+        SceneError,
+        r"cut4\.ply: truncated PLY: .* need at least 100 bytes after end_header; the file holds 99",
+    ),
+    Entry(
+        "cli-budget-too-many-probes",
+        "memory",
+        "`place --method grid --budget 1000000000` (maps that cannot fit in memory)",
+        _place_budget(10**9),
+        ResourceError,
+        r"^--budget 1000000000: baking 1000000000 probes \(\d+ bytes each at radiance_res=\d+, .*needs ~\d+ "
+        r"bytes .*over the limit of \d+ bytes.*lower --budget, or give --memory-budget",
+    ),
+    Entry(
+        "cli-memory-budget-too-large",
+        "memory",
+        "`place --memory-budget 1PB`",
+        _cli("probeplace.cli._checked_place_args", "place", "cornell_box", "--memory-budget", "1PB"),
+        ResourceError,
+        r"^--memory-budget 1PB: baking the probes that fill it needs ~1000000000000000 bytes",
+    ),
+    Entry(
+        "memory-budget-in-bits",
+        "config",
+        "memory budget `64Mb` (megabits)",
+        lambda c: __import__("probeplace.placement", fromlist=["x"]).parse_bytes("64Mb"),
+        ConfigError,
+        r"memory budget '64Mb' reads as bits \(Mb\); write MB for bytes",
+    ),
+    Entry(
+        "memory-budget-bare-prefix",
+        "config",
+        "memory budget `1G` (10⁹ or 2³⁰?)",
+        lambda c: __import__("probeplace.placement", fromlist=["x"]).parse_bytes("1G"),
+        ConfigError,
+        r"'G' alone is ambiguous: write GB or GiB",
+    ),
+    Entry(
+        "cli-out-disk-full",
+        "cli",
+        "`--out` on a full disk",
+        _disk_full,
+        ConfigError,
+        r"^--out: cannot write .*p\.json: it needs at least 4096 bytes, 0 bytes are free",
     ),
 ]
 

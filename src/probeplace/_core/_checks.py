@@ -1,5 +1,6 @@
 """Checks the command line and the runner make before any slow work (issue 19, "check everything first"):
-can an output be written, is an input file a NumPy archive at all, would an image fit in memory.
+can an output be written (and is there room for it: issue 31), is an input file a NumPy archive at all,
+would an image fit in memory.
 
 Each raises :class:`~probeplace._core.ConfigError` (``ResourceError`` for memory) with a message naming
 the option and the problem, in well under a second. Plain Python and NumPy, no JAX.
@@ -8,6 +9,7 @@ the option and the problem, in well under a second. Plain Python and NumPy, no J
 from __future__ import annotations
 
 import os
+import shutil
 import tempfile
 from pathlib import Path
 
@@ -39,13 +41,34 @@ def _probe_write(folder: Path, path: Path, what: str) -> None:
         raise ConfigError(f"{what}: cannot write {path}: {e.strerror or e} ({folder})") from None
 
 
-def check_writable_file(path: str | os.PathLike, what: str) -> Path:
+#: Free bytes below which nothing is written: a file of any size takes at least one block (4 KiB on the
+#: usual file systems), so with less even a small output would fail, after the work it records.
+MIN_FREE_BYTES = 4096
+
+
+def _check_space(folder: Path, path: Path, what: str, size: int) -> None:
+    """Refuse when the file system of ``folder`` has fewer free bytes than ``size`` (or one block)."""
+    try:
+        free = shutil.disk_usage(folder).free
+    except OSError:  # no figure (some network mounts): the write itself will say, naming the file
+        return
+    need = max(int(size), MIN_FREE_BYTES)
+    if free < need:
+        raise ConfigError(
+            f"{what}: cannot write {path}: it needs at least {need} bytes, {free} bytes are free on the "
+            f"file system of {folder}; free some space or write elsewhere"
+        )
+
+
+def check_writable_file(path: str | os.PathLike, what: str, size: int = 0) -> Path:
     """Refuse, up front, an output file that could not be written: it is a folder, a file stands where a
-    parent folder must go, or its folder (or the nearest existing folder above it) is not writable.
+    parent folder must go, its folder (or the nearest existing folder above it) is not writable, or its
+    file system has less free space than ``size`` bytes (at least one block).
 
     Args:
         path: the file the command will write (its folder may not exist yet).
         what: the option naming it in the message, e.g. ``"--out"``.
+        size: a lower bound on the bytes the file will take, where the command can tell (else 0).
 
     Returns:
         ``path`` as a Path. Nothing is left on disk.
@@ -53,15 +76,20 @@ def check_writable_file(path: str | os.PathLike, what: str) -> Path:
     path = Path(path)
     if path.is_dir():
         raise ConfigError(f"{what}: {path} is a folder, not a file")
-    _probe_write(_existing_ancestor(path.parent, path, what), path, what)
+    folder = _existing_ancestor(path.parent, path, what)
+    _probe_write(folder, path, what)
+    _check_space(folder, path, what, size)
     return path
 
 
-def check_writable_folder(path: str | os.PathLike, what: str) -> Path:
-    """Refuse, up front, an output folder that could not be created or written into (see
-    :func:`check_writable_file`). Returns ``path`` as a Path; nothing is left on disk."""
+def check_writable_folder(path: str | os.PathLike, what: str, size: int = 0) -> Path:
+    """Refuse, up front, an output folder that could not be created or written into, or whose file
+    system has less than ``size`` bytes free (see :func:`check_writable_file`). Returns ``path`` as a
+    Path; nothing is left on disk."""
     path = Path(path)
-    _probe_write(_existing_ancestor(path, path, what), path, what)
+    folder = _existing_ancestor(path, path, what)
+    _probe_write(folder, path, what)
+    _check_space(folder, path, what, size)
     return path
 
 

@@ -52,13 +52,28 @@ def atomic_path(path: str | os.PathLike, *, suffix: str = ".tmp") -> Iterator[Pa
         The temporary path (an existing empty file).
     """
     path = Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    tmp = _new_temp_file(path, suffix)
+    with naming_the_file(path):
+        path.parent.mkdir(parents=True, exist_ok=True)
+        tmp = _new_temp_file(path, suffix)
+        try:
+            yield tmp
+            os.replace(tmp, path)
+        finally:
+            tmp.unlink(missing_ok=True)
+
+
+@contextlib.contextmanager
+def naming_the_file(path: str | os.PathLike) -> Iterator[None]:
+    """Re-raise an OSError met while writing ``path`` with ``path`` as its file name when it names none
+    or only the hidden temporary file: a full disk fails a ``write()`` call with ENOSPC, which names no
+    file (issue 31: ``[Errno 28] No space left on device``, naming nothing). Same errno, same subclass."""
     try:
-        yield tmp
-        os.replace(tmp, path)
-    finally:
-        tmp.unlink(missing_ok=True)
+        yield
+    except OSError as e:
+        name = "" if e.filename is None else Path(e.filename).name
+        if e.errno is None or not (name == "" or name.startswith(f".{Path(path).name}.")):
+            raise
+        raise OSError(e.errno, e.strerror or os.strerror(e.errno), str(path)) from e
 
 
 def write_atomic(path: str | os.PathLike, write: Callable[[IO[bytes]], object]) -> Path:

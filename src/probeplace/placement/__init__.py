@@ -6,6 +6,7 @@ from ._auto import auto_budget as auto_budget
 from ._binary import binary_coverage as binary_coverage
 from ._binary import binary_visibility as binary_visibility
 from ._binary import wang_fitness_binary as wang_fitness_binary
+from ._budget import check_probe_count as check_probe_count
 from ._budget import count_for_memory as count_for_memory
 from ._budget import parse_bytes as parse_bytes
 from ._field import tighten_sdf as tighten_sdf

@@ -31,26 +31,64 @@ import numpy as np
 from scipy import spatial
 
 from .._core import ConfigError
+from .._core._errors import check_memory
 
-_UNITS = {"": 1, "b": 1, "kb": 10**3, "mb": 10**6, "gb": 10**9, "kib": 2**10, "mib": 2**20, "gib": 2**30}
+# Decimal (SI) and binary (IEC) units. Read case-insensitively except where case is the only thing that
+# tells bits from bytes (``Mb``, ``Gib``: see :func:`parse_bytes`).
+_UNITS = {
+    "": 1, "b": 1,
+    **{p + "b": 1000 ** (i + 1) for i, p in enumerate("kmgtp")},
+    **{p + "ib": 1024 ** (i + 1) for i, p in enumerate("kmgtp")},
+}  # fmt: skip
+_NUMBER = r"[0-9]*\.?[0-9]+(?:[eE][+-]?[0-9]+)?"
 
 
 def parse_bytes(value: int | str) -> int:
-    """A memory size: an int (bytes) or a string such as ``"64MiB"``, ``"1.5 GB"``, ``"4096"``."""
+    """A memory size: an int (bytes) or a string such as ``"64MiB"``, ``"1.5 GB"``, ``"1tb"``, ``"4096"``.
+
+    Units: B, KB MB GB TB PB (powers of 1000) and KiB MiB GiB TiB PiB (powers of 1024), any case, except
+    a lower-case ``b`` after an upper-case prefix (``64Mb``, ``1GiB`` written ``1Gib``): that is how bits
+    are written, so it is refused rather than guessed; so is a bare prefix (``1G``: 10⁹ or 2³⁰?).
+    """
     if isinstance(value, bool):
         raise ConfigError(f"memory budget must be a size in bytes such as '64MiB', got {value!r}")
     if isinstance(value, int):
         n = value
     else:
-        m = re.fullmatch(r"\s*([0-9]*\.?[0-9]+)\s*([a-zA-Z]*)\s*", str(value))
-        if m is None or m.group(2).lower() not in _UNITS:
+        m = re.fullmatch(rf"\s*({_NUMBER})\s*([a-zA-Z]*)\s*", str(value))
+        unit = m.group(2) if m else ""
+        if m is None or unit.lower() not in _UNITS:
+            u = unit.upper()
+            bare = m is not None and unit.lower() in set("kmgtp")
+            hint = f" ({unit!r} alone is ambiguous: write {u}B or {u}iB)" if bare else ""
             raise ConfigError(
-                f"memory budget must be a size in bytes such as '64MiB' or '1.5GB', got {value!r}"
+                f"memory budget must be a size in bytes such as '64MiB' or '1.5GB', got {value!r}{hint}"
             )
-        n = int(float(m.group(1)) * _UNITS[m.group(2).lower()])
+        if unit.endswith("b") and unit[:1].isupper():
+            raise ConfigError(f"memory budget {value!r} reads as bits ({unit}); write {unit[:-1]}B for bytes")
+        n = int(float(m.group(1)) * _UNITS[unit.lower()])
     if n <= 0:
         raise ConfigError(f"memory budget must be positive, got {value!r}")
     return n
+
+
+def check_probe_count(n: int, bytes_per_probe: int, what: str, settings: str, hint: str) -> None:
+    """Refuse, before placing, a probe count whose baked maps would not fit in memory (issue 31:
+    ``--budget 1000000000`` ran for minutes and could never have been baked). The maps are the larger
+    cost: a probe's candidate position and visibility row hold far fewer bytes than its maps.
+
+    Args:
+        n: the probe count asked for.
+        bytes_per_probe: one baked probe's maps (``probes.probe_bytes``).
+        what: the option that asked, e.g. ``"--budget 1000000000"``.
+        settings: the bake settings the estimate is for, e.g. ``"radiance_res=32, geometry_res=32"``.
+        hint: how to ask for fewer, in the caller's terms.
+
+    Raises:
+        ResourceError: ``n × bytes_per_probe`` is over the memory limit (``_core.check_memory``).
+    """
+    n, per = int(n), int(bytes_per_probe)
+    check_memory(n * per, f"{what}: baking {n} probes ({per} bytes each at {settings})", hint)
 
 
 def count_for_memory(memory: int | str, bytes_per_probe: int) -> int:

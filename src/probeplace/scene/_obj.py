@@ -89,29 +89,98 @@ def _read_text(path: Path) -> str:
         return data.decode("latin-1")  # old exporters write Latin-1 comments and names
 
 
+# Numbers each vertex statement needs (``v x y z [w | r g b [a]]``, ``vt u [v [w]]``, ``vn x y z``).
+_ARITY = {"v": (3, 7), "vt": (1, 3), "vn": (3, 3)}
+_NAMES = {"v": "vertex", "vt": "texture coordinate", "vn": "normal"}
+
+
+def check_obj_lines(path: Path, lines: list[str]) -> list[str]:
+    """Check every statement trimesh reads and return the ``mtllib`` file names.
+
+    trimesh drops some malformed lines silently and fails on others deep inside (a vertex cut to two
+    numbers breaks its array shapes: issue 31), naming no line; a file cut off at any byte makes one of
+    these, so each is refused here as ``file:line``.
+
+    Raises:
+        SceneError: a vertex statement with too few numbers or a bad one, a face with fewer than 3
+            corners, a malformed corner, or a vertex index that is 0 or beyond the file's vertices.
+    """
+    libs: list[str] = []
+    n_vertices = 0
+    worst = (0, 0)  # (largest |vertex index| of any face, its line)
+    for line_no, line in enumerate(lines, 1):
+        words = (line if "#" not in line else line[: line.index("#")]).split()
+        if not words:
+            continue
+        key = words[0]
+        if key in _ARITY:
+            _check_numbers(path, line_no, words, *_ARITY[key])
+            n_vertices += key == "v"
+        elif key == "f":
+            worst = max(worst, (_check_face(path, line_no, words), line_no))
+        elif key == "mtllib" and len(words) > 1:
+            libs.append(line.split("#", 1)[0].split(maxsplit=1)[1].strip())
+    if worst[0] > n_vertices:
+        raise SceneError(
+            f"{path}:{worst[1]}: face uses vertex {worst[0]} but the file defines {n_vertices} vertices: "
+            "truncated or corrupt OBJ"
+        )
+    return libs
+
+
+def _check_numbers(path: Path, line_no: int, words: list[str], lo: int, hi: int) -> None:
+    if not lo <= len(words) - 1 <= hi:
+        need = f"{lo}–{hi}" if lo < hi else str(lo)
+        raise SceneError(
+            f"{path}:{line_no}: {_NAMES[words[0]]} {' '.join(words)!r} has {len(words) - 1} numbers, "
+            f"needs {need}: truncated or corrupt OBJ"
+        )
+    try:
+        [float(w) for w in words[1:]]
+    except ValueError:
+        raise SceneError(f"{path}:{line_no}: bad number in {' '.join(words)!r}: corrupt OBJ") from None
+
+
+def _check_face(path: Path, line_no: int, words: list[str]) -> int:
+    """The largest |vertex index| of one face statement, after checking its corners."""
+    if len(words) < 4:
+        # trimesh silently drops a face with < 3 corners: the mark of a file cut off mid-line (issue 9).
+        raise SceneError(
+            f"{path}:{line_no}: face with {len(words) - 1} vertices (need ≥ 3): truncated or corrupt OBJ"
+        )
+    index = [_vertex_index(corner) for corner in words[1:]]
+    if 0 in index:  # OBJ counts from 1 (negative: back from the last vertex); 0 or text is corrupt
+        raise SceneError(
+            f"{path}:{line_no}: bad face corner {words[1 + index.index(0)]!r} in {' '.join(words)!r} "
+            "(vertex indices count from 1): corrupt OBJ"
+        )
+    return max(map(abs, index))
+
+
+def _vertex_index(corner: str) -> int:
+    """The vertex index of a face corner (``v``, ``v/vt``, ``v//vn``, ``v/vt/vn``), 0 if it is not a
+    number (a malformed texture or normal index is left to trimesh's own error)."""
+    try:
+        return int(corner.split("/", 1)[0])
+    except ValueError:
+        return 0
+
+
 def load_obj(path: Path) -> RawScene:
     """Read an ``.obj`` file and its MTL library (see the module docstring for the mapping).
 
     Raises:
-        SceneError: binary garbage, a face with fewer than 3 corners, a malformed MTL value, or no
-            triangles.
+        SceneError: binary garbage, a malformed statement (``file:line``: :func:`check_obj_lines`), a
+            malformed MTL value, anything else trimesh cannot parse, or no triangles.
     """
     text = _read_text(path)
     mtl: dict[str, dict] = {}
-    for line_no, line in enumerate(text.splitlines(), 1):
-        # trimesh silently drops a face with < 3 corners: the mark of a file cut off mid-line (issue 9).
-        words = line.split("#", 1)[0].split()
-        if words and words[0] == "f" and len(words) < 4:
-            raise SceneError(
-                f"{path}:{line_no}: face with {len(words) - 1} vertices (need ≥ 3): truncated or corrupt OBJ"
-            )
-        tok = line.split("#", 1)[0].split(maxsplit=1)
-        if len(tok) == 2 and tok[0] == "mtllib":
-            lib = path.parent / tok[1].strip()
-            if lib.is_file():
-                mtl.update(parse_mtl(lib))
-            else:
-                log.warning("%s: material library %s not found; its materials become grey", path, lib)
+    for lib_name in check_obj_lines(path, text.splitlines()):
+        lib = path.parent / lib_name
+        if lib.is_file():
+            mtl.update(parse_mtl(lib))
+        else:
+            log.warning("%s: material library %s not found; its materials become grey", path, lib)
     with trimesh_errors(path, "OBJ"):
         tscene = trimesh.load(
             io.BytesIO(text.encode("utf-8")),
@@ -120,6 +189,11 @@ def load_obj(path: Path) -> RawScene:
             process=False,
             resolver=trimesh.resolvers.FilePathResolver(path),
         )
+    with trimesh_errors(path, "OBJ"):  # a backstop: the line check should leave trimesh nothing to trip on
+        return _raw_scene(path, tscene, mtl)
+
+
+def _raw_scene(path: Path, tscene, mtl: dict[str, dict]) -> RawScene:
     parts = PartCollector()
     mat_names: list[str] = []
     props: list[dict] = []

@@ -14,6 +14,7 @@ from pathlib import Path
 import numpy as np
 import trimesh
 
+from ._ply_check import check_ply
 from ._raw import DEFAULT_GREY, PartCollector, RawScene, trimesh_errors
 
 
@@ -41,8 +42,11 @@ def load_ply(path: Path) -> RawScene:
     """Read a ``.ply`` mesh (ASCII or binary) as one grey (or vertex-colour-averaged) part.
 
     Raises:
-        SceneError: trimesh cannot parse it, or it holds no triangles (a point cloud).
+        SceneError: a malformed header, a body shorter than the header declares or a garbled row
+            (``file:line`` where there is one: :func:`check_ply`), anything else trimesh cannot parse,
+            or no triangles (a point cloud).
     """
+    check_ply(path)
     with trimesh_errors(path, "PLY"):
         tscene = trimesh.load(path, force="scene", process=False)
     parts = PartCollector()
