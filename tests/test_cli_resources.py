@@ -135,7 +135,12 @@ def test_full_disk_is_refused_before_any_work(tmp_path, capsys, no_slow_work, mo
     before = set(tmp_path.iterdir()) | {tmp_path / "in.json"}
     out = tmp_path / "new" / "out"
     line = refused(_argv(command, tmp_path, out), capsys, "--out", "cannot write", str(out))
-    assert "it needs at least 4096 bytes, 100 bytes are free" in line
+    # evaluate knows its output's size (an upper bound from the image size, 128² by default); the others
+    # ask for one block
+    from probeplace.evaluate._write import evaluation_bytes
+
+    need = evaluation_bytes(128, 128) if command == "evaluate" else 4096
+    assert f"it needs at least {need} bytes, 100 bytes are free" in line
     assert set(tmp_path.iterdir()) <= before
 
 
@@ -206,3 +211,19 @@ def test_disk_full_while_drawing_the_top_view_names_it(tmp_path, capsys, monkeyp
         f"No space left on device: {out.with_suffix('.png')}",
     )
     assert not any(tmp_path.iterdir())
+
+
+def test_memory_limit_variable_takes_sizes_and_refuses_nonsense(monkeypatch, tmp_path, capsys, no_slow_work):
+    """$PROBEPLACE_MAX_BYTES reads sizes like the budget options (8GiB = 8·2³⁰ bytes); a value that is no
+    size is one line naming the variable, not a traceback."""
+    from probeplace._core._errors import memory_limit_bytes
+
+    monkeypatch.setenv("PROBEPLACE_MAX_BYTES", "8GiB")
+    assert memory_limit_bytes() == 8 * 2**30
+    monkeypatch.setenv("PROBEPLACE_MAX_BYTES", "12e9")
+    assert memory_limit_bytes() == 12 * 10**9
+    monkeypatch.setenv("PROBEPLACE_MAX_BYTES", "lots")
+    out = tmp_path / "p.json"
+    line = refused(["place", "cornell_box", "--budget", "8", "--out", str(out)], capsys)
+    assert "$PROBEPLACE_MAX_BYTES='lots'" in line and "8GiB" in line, line
+    assert not out.exists()

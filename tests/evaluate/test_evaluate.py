@@ -105,6 +105,35 @@ def test_evaluate_writes_all_files(cornell_eval, tmp_path):
     assert set(paths) >= {"metrics", "exr"}
 
 
+def test_evaluation_size_bound_and_all_or_nothing(cornell_eval, tmp_path, monkeypatch):
+    """The up-front space check's bound holds for the files written (their sizes are the oracle), a
+    rewrite replaces an evaluation in place, and a write that fails part-way (a full disk) leaves neither
+    the folder nor its staging folder behind."""
+    import errno
+
+    from probeplace.evaluate import _write
+    from probeplace.evaluate._evaluate import EVAL_IMAGES
+
+    result = cornell_eval[3]
+    assert tuple(result.images) == EVAL_IMAGES
+    h, w = np.asarray(result.images["probe_full"]).shape[:2]
+    paths = write_evaluation(result, tmp_path / "eval")
+    written = sum(p.stat().st_size for p in (tmp_path / "eval").iterdir())
+    assert written <= _write.evaluation_bytes(w, h)
+    assert len(list((tmp_path / "eval").iterdir())) == len(paths)
+    write_evaluation(result, tmp_path / "eval")  # over a finished one: same files, no leftovers
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["eval"]
+    assert len(list((tmp_path / "eval").iterdir())) == len(paths)
+
+    def full_disk(*a, **k):
+        raise OSError(errno.ENOSPC, "No space left on device")
+
+    monkeypatch.setattr(_write, "save_exr", full_disk)
+    with pytest.raises(OSError):
+        write_evaluation(result, tmp_path / "new" / "eval")
+    assert list((tmp_path / "new").iterdir()) == []
+
+
 def test_metrics_invariants(cornell_eval):
     _, lf, _, result = cornell_eval
     m = result.metrics

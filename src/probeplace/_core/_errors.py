@@ -28,7 +28,13 @@ def memory_limit_bytes() -> int:
 
     env = os.environ.get(MAX_BYTES_ENV)
     if env:
-        return int(float(env))
+        from ._sizes import parse_bytes
+
+        try:
+            return parse_bytes(env)
+        except ConfigError as e:
+            fix = "unset it or give a size such as 8GiB"
+            raise ConfigError(f"${MAX_BYTES_ENV}={env!r}: {e}; {fix}") from None
     try:
         return os.sysconf("SC_PHYS_PAGES") * os.sysconf("SC_PAGE_SIZE") // 2
     except (ValueError, OSError, AttributeError):  # no sysconf (Windows): assume 16 GiB

@@ -132,6 +132,7 @@ def _eval_config(args: argparse.Namespace):
 def _checked_outputs(args: argparse.Namespace, path: Path) -> None:
     """--save-baked and --out: the right kind of input, and writable, before any work."""
     from .._core._checks import check_writable_file, check_writable_folder
+    from ._write import evaluation_bytes
 
     if args.save_baked is not None:
         if path.suffix != ".json":
@@ -139,7 +140,7 @@ def _checked_outputs(args: argparse.Namespace, path: Path) -> None:
         if Path(args.save_baked).suffix != ".npz":
             raise ConfigError(f"--save-baked must name a .npz file, got {args.save_baked}")
         check_writable_file(args.save_baked, "--save-baked")
-    check_writable_folder(args.out, "--out")
+    check_writable_folder(args.out, "--out", size=evaluation_bytes(args.width, args.height))
 
 
 def _checked_inputs(args: argparse.Namespace):
@@ -268,7 +269,6 @@ def run(args: argparse.Namespace) -> int:
         if args.save_baked:
             save_probes(args.save_baked, lf)
     result = evaluate(scene, lf, view=view, config=config, caster=caster)
-    Path(args.out, "metrics.json").unlink(missing_ok=True)  # written last: present only when finished
     paths = write_evaluation(result, args.out)
     m = result.metrics
     keys = ("mse_glossy_indirect", "noise_floor_glossy_indirect", "mse_diffuse_indirect", "mse_full")

@@ -80,6 +80,13 @@ from ._steps import (
 )
 
 EVAL_COMPONENTS = ("diffuse_indirect", "glossy_indirect", "full")
+#: The result's images (:func:`_eval_images`), in order: references, probe images, their errors.
+EVAL_IMAGES = (
+    "ref_emission", "ref_direct", "ref_diffuse_indirect", "ref_glossy_indirect",
+    "ref_glossy_indirect_render", "ref_full", "probe_diffuse_indirect", "probe_glossy_indirect",
+    "probe_full", "perfect_trace_glossy_indirect", "ref_glossy_indirect_diffuse_at_hit",
+    *(f"error_{c}" for c in EVAL_COMPONENTS),
+)  # fmt: skip
 
 
 @dataclasses.dataclass(frozen=True)
@@ -237,6 +244,7 @@ def _eval_images(ref_img: dict, probe: dict, crn_ref_g, perfect_g, view_indep_g)
     }
     for c in EVAL_COMPONENTS:
         images[f"error_{c}"] = np.abs(images[f"probe_{c}"] - images[f"ref_{c}"]).astype(np.float32)
+    assert tuple(images) == EVAL_IMAGES  # the writer's size bound (_write.evaluation_bytes) counts these
     return images
 
 

@@ -1,8 +1,15 @@
-"""Write an evaluation: ``metrics.json`` (atomic), EXR + PNG images and false-colour error maps."""
+"""Write an evaluation: ``metrics.json`` (atomic), EXR + PNG images and false-colour error maps.
+
+The files are written into a hidden folder beside ``out`` and moved in only when all of them were
+written, ``metrics.json`` last (its presence marks a finished evaluation); a failed write (a full disk)
+leaves nothing behind but what ``out`` held before.
+"""
 
 from __future__ import annotations
 
 import os
+import shutil
+import tempfile
 from pathlib import Path
 
 import numpy as np
@@ -10,7 +17,23 @@ from PIL import Image
 
 from .._core import write_json_atomic
 from ..render import save_exr, save_png
-from ._evaluate import EVAL_COMPONENTS, EvalResult
+from ._evaluate import EVAL_COMPONENTS, EVAL_IMAGES, EvalResult
+
+# Per-file allowance for headers, metadata and the file system's block rounding, bytes.
+_FILE_OVERHEAD = 8192
+
+
+def evaluation_bytes(width: int, height: int) -> int:
+    """An upper bound on the bytes :func:`write_evaluation` writes for a ``width`` × ``height`` image:
+    one 8-bit RGB PNG per image (zlib never grows data by more than ~0.03 %, so ≤ 3.01 bytes a pixel plus
+    the row filter byte), the false-colour maps (with their colour bar: ≤ 1.2× the width), and one EXR
+    holding every image as float32 RGB (12 bytes a pixel, uncompressed), plus per-file overhead."""
+    px = int(width) * int(height)
+    png = int(px * 3.01) + int(height) + _FILE_OVERHEAD
+    false_png = int(1.2 * px * 3.01) + int(height) + _FILE_OVERHEAD
+    exr = 12 * px * len(EVAL_IMAGES) + _FILE_OVERHEAD
+    return len(EVAL_IMAGES) * png + len(EVAL_COMPONENTS) * false_png + exr + _FILE_OVERHEAD
+
 
 # Viridis at 9 stops (matplotlib's table, sampled), interpolated linearly: perceptually ordered.
 _VIRIDIS = np.array(
@@ -56,9 +79,29 @@ def false_colour(err: np.ndarray, vmax: float | None = None, *, bar: bool = True
 def write_evaluation(result: EvalResult, out_dir: str | os.PathLike) -> dict[str, Path]:
     """Write ``metrics.json``, ``images.exr`` (every image as a layer), one tone-mapped PNG per image and
     ``error_<component>_false.png`` (viridis, colour bar on the right, scale in metrics.json under
-    ``error_png_vmax``). Returns name → path."""
+    ``error_png_vmax``) into ``out_dir``, all or nothing (module docstring). Returns name → path."""
     out = Path(out_dir)
+    made = not out.exists()
     out.mkdir(parents=True, exist_ok=True)
+    stage = Path(tempfile.mkdtemp(prefix=f".{out.name}.partial-", dir=out.parent))
+    try:
+        staged = _write_files(result, stage)
+        (out / "metrics.json").unlink(missing_ok=True)  # an earlier evaluation's: unfinished until the end
+        # metrics.json last: an interrupted move leaves an evaluation without it, i.e. unfinished
+        names = sorted(staged, key=lambda k: k == "metrics")
+        for k in names:
+            os.replace(staged[k], out / staged[k].name)
+        return {k: out / staged[k].name for k in staged}
+    except BaseException:
+        if made and out.is_dir() and not any(out.iterdir()):
+            out.rmdir()
+        raise
+    finally:
+        shutil.rmtree(stage, ignore_errors=True)
+
+
+def _write_files(result: EvalResult, out: Path) -> dict[str, Path]:
+    """Every file of :func:`write_evaluation` into the (staging) folder ``out``."""
     paths: dict[str, Path] = {}
     vmax = {}
     for c in EVAL_COMPONENTS:
