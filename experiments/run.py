@@ -46,7 +46,10 @@ from hydra.core.config_store import ConfigStore
 from omegaconf import DictConfig, OmegaConf
 
 from probeplace._core import ProbeplaceError
+from probeplace._core._jax_cache import enable_compilation_cache
 from probeplace.experiment import ExperimentConfig, run
+
+enable_compilation_cache()  # JAX's compilation cache (issue 32: $PROBEPLACE_JAX_CACHE), before any compile
 
 CONFIG_DIR = str(Path(__file__).resolve().parents[1] / "configs")
 

@@ -2,12 +2,42 @@
 
 from __future__ import annotations
 
+import os
+from pathlib import Path
+
 import jax
 import pytest
 
 jax.config.update("jax_enable_x64", True)
 jax.config.update("jax_numpy_dtype_promotion", "strict")
 jax.config.update("jax_numpy_rank_promotion", "raise")
+
+# JAX's persistent compilation cache (issue 32; probeplace._core._jax_cache): the suite keeps every compiled
+# program in .cache/jax/<jax version tag> of this checkout (gitignored; one machine's, never shared), so a
+# second `make test` loads what the first compiled. $PROBEPLACE_JAX_CACHE (a folder, or `off`) overrides it;
+# child processes (the CLI and runner tests) inherit the setting. Tests that measure compile time use the
+# ``no_persistent_cache`` fixture. XLA_FLAGS (make test-isa's --xla_cpu_max_isa) is part of JAX's cache key.
+from probeplace._core._jax_cache import ENV as _JAX_CACHE_ENV  # noqa: E402
+from probeplace._core._jax_cache import enable_compilation_cache  # noqa: E402
+
+TEST_JAX_CACHE = Path(__file__).resolve().parents[1] / ".cache" / "jax"
+enable_compilation_cache(os.environ.get(_JAX_CACHE_ENV) or str(TEST_JAX_CACHE))
+
+
+def pytest_configure(config):
+    # Two workers compiling the same program at once: one may read the entry while the other writes it (JAX
+    # writes it in place). JAX then warns and compiles the program itself: a warning to show, not a failure.
+    config.addinivalue_line("filterwarnings", "default:Error reading persistent compilation cache entry")
+
+
+@pytest.fixture
+def no_persistent_cache():
+    """No persistent compilation cache inside the test: compile time measured is real compile time."""
+    from probeplace._core._jax_cache import persistent_cache_disabled
+
+    with persistent_cache_disabled():
+        yield
+
 
 #: The heaviest test files, heaviest first (worker seconds on 2 cores, measured 2026-12-02: 230–430 for the
 #: first two, 110–190 for the rest). They are collected first so that pytest-xdist's ``--dist loadfile``

@@ -372,6 +372,9 @@ def build_parser() -> argparse.ArgumentParser:
     from .evaluate._cli import add_parser as _add_evaluate  # --- evaluate (issue 4) ---
 
     _add_evaluate(sub)
+    from ._cache_cli import add_parser as _add_cache  # --- cache (issue 32) ---
+
+    _add_cache(p, sub)
     for name, parser in sub.choices.items():  # every subcommand: defaults in its help, -v/-q after it
         parser.formatter_class = _HelpFormatter
         if parser.description is None:
@@ -484,6 +487,9 @@ def main(argv: list[str] | None = None) -> int:
             if args.verbose and args.quiet:
                 parser.error("-v/--verbose and -q/--quiet exclude each other")
             _configure(args)
+            from ._cache_cli import enable_from_args  # JAX's compilation cache, before any compile
+
+            enable_from_args(args)
             return int(args.func(args) or 0)
     except ProbeplaceError as e:  # user-facing errors: one clear line, no traceback
         return _fail(str(e))

@@ -9,6 +9,9 @@ import pytest
 
 from probeplace.experiment._run import _covered_s, _timed
 
+# compile time and compile counts as a fresh process sees them: no persistent compilation cache (issue 32)
+pytestmark = pytest.mark.usefixtures("no_persistent_cache")
+
 
 def test_covered_s_counts_overlaps_once_and_clips():
     # nested (a jit traced inside its caller's trace), overlapping, disjoint, and outside the window

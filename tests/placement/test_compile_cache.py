@@ -15,6 +15,9 @@ import pytest
 from probeplace.placement import FitnessConfig, _refine, _valid, _vardis, wang_fitness
 from probeplace.placement._refine import GibbsRefiner
 
+# compile time and compile counts as a fresh process sees them: no persistent compilation cache (issue 32)
+pytestmark = pytest.mark.usefixtures("no_persistent_cache")
+
 
 def _n_traces(fn) -> int:
     """Compiled entries of a ``jax.jit`` or ``eqx.filter_jit`` function."""
