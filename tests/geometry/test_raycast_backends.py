@@ -39,6 +39,7 @@ def scene_and_casters(request):
     return scene, casters
 
 
+@pytest.mark.isa
 def test_backends_agree_on_closest_hit(scene_and_casters):
     scene, casters = scene_and_casters
     o, d = random_rays(scene, N_RAYS, seed=1)
@@ -50,6 +51,7 @@ def test_backends_agree_on_closest_hit(scene_and_casters):
             assert_same_hits(scene, o, d, hit, ref, label=name)
 
 
+@pytest.mark.isa
 @pytest.mark.parametrize("name", ["rooms"])
 def test_fused_schedule_and_unsorted_rays_agree(name):
     scene = load_scene(name)

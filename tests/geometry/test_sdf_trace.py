@@ -94,6 +94,7 @@ def test_lookup_dtype_in_equals_out():
     assert jax.jit(sdf_value)(grid, jnp.zeros(3, jnp.float32)) == sdf_value(grid, jnp.zeros(3, jnp.float32))
 
 
+@pytest.mark.isa
 @pytest.mark.parametrize("n", [0, 1, 7, 8, 9, 30])
 def test_host_lookup_equals_per_point_lookup(n):
     grid = analytic_grid(lambda p: np.linalg.norm(p, axis=-1) - SPHERE_R, dtype=jnp.float32)

@@ -47,6 +47,7 @@ def _plain_remove(rows, a, goal):
     return keep
 
 
+@pytest.mark.isa
 @pytest.mark.parametrize("seed", range(4))
 def test_lazy_greedy_and_removal_match_plain_loops(seed):
     rng = np.random.default_rng(seed)

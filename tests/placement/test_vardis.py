@@ -64,6 +64,7 @@ def _random_setup(seed, n=30, p=60):
     return pos, vals, pts
 
 
+@pytest.mark.isa
 @pytest.mark.parametrize("mode", ["sh", "directions", "average"])
 def test_batched_scores_match_rebuild(mode):
     pos, vals, pts = _random_setup(0)
@@ -75,6 +76,7 @@ def test_batched_scores_match_rebuild(mode):
     assert np.argmin(batched) == np.argmin(oracle)
 
 
+@pytest.mark.isa
 def test_greedy_order_matches_rebuild_greedy():
     """The cached, locally updated loop removes the same probes as greedy with full rebuilds."""
     pos, vals, pts = _random_setup(1, n=24, p=50)
@@ -190,6 +192,7 @@ def test_evaluation_points_kinds(cornell):
     assert len(q) >= 10 and d.min() >= 120.0 * (1 - 1e-6)
 
 
+@pytest.mark.isa
 def test_vectorised_plans_match_single_plans():
     """TetMesh.plan_removals (geometry vectorised across candidates) == plan_removal one at a time."""
     rng = np.random.default_rng(6)

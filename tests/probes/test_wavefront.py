@@ -115,6 +115,7 @@ def _wavefront(lf, scene, rays, **kw):
     return trace_light_field(make_tracer(lf, scene.bounds, config=cfg), *rays)
 
 
+@pytest.mark.isa
 def test_wavefront_matches_per_ray_cornell(cornell_case):
     scene, lf, rays, ref = cornell_case
     st = _assert_covers(ref)

@@ -131,6 +131,7 @@ def cornell_bvh_base(cornell):
     scale=st.floats(1e-3, 1e3),
     shift=st.tuples(*[st.floats(-1e3, 1e3)] * 3),
 )
+@pytest.mark.isa
 def test_bvh_matches_the_float64_reference_on_moved_cornell(cornell_bvh_base, seed, scale, shift):
     """The BVH on the Cornell box under a random uniform scale and translation: SAH splits are invariant
     under both, so the BVH keeps its layout and compiles once; rays and vertex values are new per example."""
@@ -281,6 +282,7 @@ def test_random_config_values_are_refused_or_valid(name, data):
             assert v >= 1 or field in ("w1", "w2"), f"{name}.{field}={v} accepted"
 
 
+@pytest.mark.isa
 def test_chunked_tracing_matches_unchunked(cornell, cornell_baked):
     """``trace_light_field(..., chunk=k)`` (bounded memory, benchmarks/memory.py) gives the same answers as
     the one-batch trace, including a last partial chunk (N_RAYS = 64 rays, chunk 24). N_RAYS rays: the

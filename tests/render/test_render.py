@@ -113,6 +113,7 @@ def test_sky_and_sun_closed_form():
     assert np.all(full > 0.8 * expected) and np.all(full < 1.1 * expected)
 
 
+@pytest.mark.isa
 @pytest.mark.slow  # ~35 s; chunking stays in the default run via test_trace_rays_chunks_and_offsets
 def test_batching_does_not_change_the_image(cornell):
     # Random numbers are a function of (pixel, sample, bounce): batching is invisible (common random numbers).
@@ -142,6 +143,7 @@ class _HostCaster(AbstractRayCaster):
         return self.inner.occluded_host(origins, directions, t_max)
 
 
+@pytest.mark.isa
 @pytest.mark.slow  # ~35 s: two full renders of the Cornell box
 def test_host_loop_matches_jitted_loop(cornell):
     cfg = RenderConfig(
@@ -286,6 +288,7 @@ def _render_schedule(scene, schedule, caster=None, **kw):
     return np.asarray(res.mean, np.float64), np.asarray(res.var_of_mean, np.float64)
 
 
+@pytest.mark.isa
 def test_compact_matches_fused(cornell):
     # 64 items × 16 samples in batches of _PPB = 512 paths: two batches per render; the compact one runs
     # the (64 items × 8 samples) kernel the Cornell renders above compile.
@@ -297,6 +300,7 @@ def test_compact_matches_fused(cornell):
     np.testing.assert_allclose(v_c, v_f, rtol=1e-3, atol=1e-8)
 
 
+@pytest.mark.isa
 @pytest.mark.slow
 def test_host_caster_compaction_matches_jitted(cornell):
     pytest.importorskip("embreex")

@@ -153,8 +153,8 @@ def _checked_inputs(args: argparse.Namespace):
     path = Path(args.probes)
     if path.suffix not in (".json", ".npz"):
         raise ConfigError(f"--probes must be a ProbeSet .json or a baked .npz, got {path}")
+    config = _eval_config(args)  # first: the output's size bound needs a sensible image size
     _checked_outputs(args, path)
-    config = _eval_config(args)
     if args.backend == "mitsuba":  # refuse before loading anything if its LLVM variant cannot load
         from ..render._mitsuba_backend import load_mitsuba
 
