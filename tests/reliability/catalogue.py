@@ -1325,4 +1325,43 @@ CATALOGUE += [
     ),
 ]
 
+
+
+def _max_bytes_env(value: str):
+    """``$PROBEPLACE_MAX_BYTES=value`` read by the memory check (the variable restored afterwards)."""
+
+    def run(c):
+        import os
+
+        from probeplace._core._errors import MAX_BYTES_ENV, memory_limit_bytes
+
+        old = os.environ.get(MAX_BYTES_ENV)
+        os.environ[MAX_BYTES_ENV] = value
+        try:
+            return memory_limit_bytes()
+        finally:
+            os.environ.pop(MAX_BYTES_ENV) if old is None else os.environ.__setitem__(MAX_BYTES_ENV, old)
+
+    return run
+
+
+CATALOGUE += [
+    Entry(
+        "max-bytes-env-not-a-size",
+        "memory",
+        "`$PROBEPLACE_MAX_BYTES` set to something that is not a size (sizes such as `8GiB` are read)",
+        _max_bytes_env("lots"),
+        ConfigError,
+        r"^\$PROBEPLACE_MAX_BYTES='lots': memory budget must be a size in bytes .*unset it or give a size",
+    ),
+    Entry(
+        "runner-redo-bad",
+        "config",
+        "runner `redo=sometimes` (never, stale or all)",
+        _runner({"redo": "sometimes"}),
+        ConfigError,
+        r"redo: must be one of never, stale, all, got 'sometimes'",
+    ),
+]
+
 assert len({e.id for e in CATALOGUE}) == len(CATALOGUE), "catalogue ids must be unique"

@@ -86,8 +86,17 @@ render (a missing view, a size or sample count below 1, an image or bake too lar
 output that cannot be written, an empty probe set, a text file named `.npz`), each refused in one line
 `probeplace: error: ...`, exit status 2. Hydra's own errors in `experiments/run.py` — a misspelt key
 (`placer.budgett=3`), a wrong type (`seed=abc`), a missing option (`scene=nosuch`) — are composed
-before any run starts and printed the same way, in one line naming the key; an I/O error while
+before any run starts and printed the same way, in one line naming the key (`scene=<a file>` adds that
+a file scene is given as `scene.name=<file>`); an I/O error while
 writing is one line, exit 2; Ctrl-C is `probeplace: interrupted`, exit 130.
+`tests/experiment/test_run_identity.py`: a finished run whose inputs changed — the scene file, its MTL or
+glTF buffers (SHA-256), the resolved sidecar (sun, sky, emitters, cameras, overrides) or the code's
+`RESULTS_VERSION` — is not skipped but refused before any run starts, naming the keys: *`<run folder>` is a
+finished run with different inputs (scene.config.sun.elevation_deg (35.0 → 20.0)); redo it with
+redo=stale (run(..., force=True)), use another name=..., or delete the folder*; a finished run that
+recorded no inputs (older than `inputs.json`) is refused the same way rather than trusted.
+`tests/evaluate/test_evaluate.py`: an evaluation is written all or nothing (a write that fails part-way
+leaves no folder), after an up-front check of the free space its images need.
 """
 
 
