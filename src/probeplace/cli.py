@@ -39,16 +39,16 @@ def _show_scene(args: argparse.Namespace) -> int:
         BUILTIN_SCENES,
         find_scene_file,
         load_scene,
+        looks_like_path,
         scene_config_layers,
         scene_overrides_from_args,
     )
-    from .scene._load import _looks_like_path
     from .scene._summary import scene_summary
 
     overrides = scene_overrides_from_args(args)  # checked before the scene is read
     scene = load_scene(args.name, overrides=overrides or None)
     s = scene_summary(scene)
-    path = Path(args.name) if _looks_like_path(args.name) else None
+    path = Path(args.name) if looks_like_path(args.name) else None
     if path is None and args.name not in BUILTIN_SCENES:
         path = find_scene_file(args.name)
 

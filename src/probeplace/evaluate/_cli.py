@@ -183,9 +183,9 @@ def _checked_inputs(args: argparse.Namespace):
 
 def _scene_key(name_or_path: str) -> str:
     """The name a scene loads under: a file's stem (``load_scene`` names a file scene so), else the name."""
-    from ..scene._load import _looks_like_path
+    from ..scene import looks_like_path
 
-    return Path(name_or_path).stem if _looks_like_path(name_or_path) else str(name_or_path)
+    return Path(name_or_path).stem if looks_like_path(name_or_path) else str(name_or_path)
 
 
 def _check_recorded_scene(meta: dict, path: Path, scene: str) -> None:

@@ -39,8 +39,7 @@ def host_caster(scene: Scene):
     renderer is the JAX brute-force caster on small scenes: a compile; and which the tests' ``no_slow_work``
     fixture blocks as the start of slow work), or ``None`` without embreex (the checks are then skipped).
     Building Embree's BVH takes milliseconds here, and its host queries run no JAX op."""
-    from ..geometry import EmbreeCaster
-    from ..geometry._embree import EmbreeUnavailableError
+    from ..geometry import EmbreeCaster, EmbreeUnavailableError
 
     try:
         return EmbreeCaster(scene)
@@ -138,7 +137,7 @@ def light_reach(scene: Scene, caster, *, res: int = VIEW_RES) -> tuple[int, dict
     Returns:
         (points, {light: points reached}) for the lights the scene has: ``"sun"``, ``"sky"``, ``"emitters"``.
     """
-    from ..placement._valid import _fibonacci_directions
+    from ..placement import fibonacci_directions
 
     p, n = _first_hits(scene, caster, res)
     lo, hi = (np.asarray(b, np.float64) for b in scene.bounds)
@@ -151,7 +150,7 @@ def light_reach(scene: Scene, caster, *, res: int = VIEW_RES) -> tuple[int, dict
         facing = n @ s > 0
         reach["sun"] = int((facing & _clear(caster, p, np.broadcast_to(s, p.shape), np.inf)).sum())
     if float(np.max(np.asarray(scene.sky_radiance))) > 0:
-        f = _fibonacci_directions(SKY_RAYS).astype(np.float64)  # folded onto each point's hemisphere
+        f = fibonacci_directions(SKY_RAYS).astype(np.float64)  # folded onto each point's hemisphere
         d = f[None] * np.sign(np.einsum("kc,nc->nk", f, n) + 1e-30)[..., None]
         esc = _clear(caster, np.repeat(p, len(f), axis=0), d.reshape(-1, 3), np.inf)
         reach["sky"] = int(esc.reshape(len(p), -1).any(axis=1).sum())

@@ -115,10 +115,9 @@ def _resolved(cfg) -> dict:
 def _scene_file(name: str, overrides) -> Path | None:
     """The scene file ``load_scene`` would read for ``name``, or None for a built-in. A name or path that
     does not resolve is refused with ``load_scene``'s own message (it fails before reading anything)."""
-    from ..scene import BUILTIN_SCENES, SCENE_EXTENSIONS, find_scene_file, load_scene
-    from ..scene._load import _looks_like_path
+    from ..scene import BUILTIN_SCENES, SCENE_EXTENSIONS, find_scene_file, load_scene, looks_like_path
 
-    if _looks_like_path(name):
+    if looks_like_path(name):
         path: Path | None = Path(name)
     elif name in BUILTIN_SCENES:
         return None

@@ -111,6 +111,14 @@ class EmbreeCaster(AbstractRayCaster):
             return np.concatenate(res) if res else np.zeros(0, np.int32)
         return {k: np.concatenate([r[k] for r in res]) for k in ("tfar", "primID", "u", "v")}
 
+    def host_closest_hit(self, origins: np.ndarray, directions: np.ndarray, t_max=np.inf):
+        """:meth:`closest_hit` on the host, NumPy in and out, with no JAX op (for checks that run before
+        anything compiles): (t float64, ``inf`` on a miss; triangle int64, -1 on a miss)."""
+        r = self._run(origins, directions, t_max, "INTERSECT")
+        tri = np.asarray(r["primID"], np.int64)
+        tri = np.where(tri >= 0, tri, -1)
+        return np.where(tri >= 0, np.asarray(r["tfar"], np.float64), np.inf), tri
+
     def closest_hit(
         self,
         origins: Float[Array, "n_rays 3"],

@@ -46,6 +46,7 @@ from ._seeds import shrink_balls as shrink_balls
 from ._seeds import skeleton_seeds as skeleton_seeds
 from ._valid import ValidSpace as ValidSpace
 from ._valid import default_clearance as default_clearance
+from ._valid import fibonacci_directions as fibonacci_directions
 from ._valid import make_valid as make_valid
 
 # --- baselines (registered on import) ---

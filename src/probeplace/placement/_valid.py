@@ -96,7 +96,8 @@ def default_clearance(scene: Scene | None, sdf: SDFGrid, *, bounds=None) -> floa
 
 
 # ------------------------------------------------------------------------------------ relocation
-def _fibonacci_directions(n: int) -> np.ndarray:
+def fibonacci_directions(n: int) -> np.ndarray:
+    """``n`` unit directions spread evenly over the sphere (a Fibonacci lattice), float32 (n, 3)."""
     i = np.arange(n) + 0.5
     z = 1.0 - 2.0 * i / n
     r = np.sqrt(1.0 - z * z)
@@ -129,7 +130,7 @@ def _relocate(
         target,
         jnp.float32(clearance),
         h,
-        jnp.asarray(_fibonacci_directions(128)),
+        jnp.asarray(fibonacci_directions(128)),
         jnp.asarray(lo, jnp.float32),
         jnp.asarray(hi, jnp.float32),
         jnp.int32(n_radii),

@@ -43,7 +43,7 @@ from jaxtyping import Array, Float
 from .._core import ConfigError, Scene, SceneError, next_pow2, scene_box
 from .._core._sh import sh_basis
 from ._tetra import RemovalPlan, TetMesh
-from ._valid import _fibonacci_directions
+from ._valid import fibonacci_directions
 
 ERROR_MODES = ("sh", "directions", "average")
 # (w_Y, w_C) presets of Vardis et al. 2021 §2.
@@ -279,7 +279,7 @@ def error_features(sh: np.ndarray, mode: str = "sh", n_dirs: int = 32) -> np.nda
     if mode == "sh":
         rgb = sh
     elif mode == "directions":
-        rgb = np.einsum("dk,nkc->ndc", sh_basis(_fibonacci_directions(n_dirs).astype(np.float64)), sh)
+        rgb = np.einsum("dk,nkc->ndc", sh_basis(fibonacci_directions(n_dirs).astype(np.float64)), sh)
     elif mode == "average":
         rgb = sh[:, :1] * Y00
     else:

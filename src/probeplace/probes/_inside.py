@@ -134,9 +134,7 @@ def host_closest_hit(caster, origins: np.ndarray, dirs: np.ndarray) -> tuple[np.
     from ..geometry import EmbreeCaster
 
     if isinstance(caster, EmbreeCaster):
-        r = caster._run(origins, dirs, np.inf, "INTERSECT")
-        tri = np.asarray(r["primID"], np.int64)
-        return np.where(tri >= 0, np.asarray(r["tfar"], np.float64), np.inf), tri
+        return caster.host_closest_hit(origins, dirs)
     hit = caster.closest_hit(jnp.asarray(origins, jnp.float32), jnp.asarray(dirs, jnp.float32))
     tri = np.asarray(hit.tri, np.int64)
     return np.where(tri >= 0, np.asarray(hit.t, np.float64), np.inf), tri
@@ -158,10 +156,10 @@ def points_in_solid(
     Returns:
         ((n,) bool inside, (n,) float share of the rays that hit a back face).
     """
-    from ..placement._valid import _fibonacci_directions
+    from ..placement import fibonacci_directions
 
     pts = np.asarray(points, np.float64).reshape(-1, 3)
-    dirs = _fibonacci_directions(n_dirs).astype(np.float64)
+    dirs = fibonacci_directions(n_dirs).astype(np.float64)
     o = np.repeat(pts, n_dirs, axis=0)
     d = np.tile(dirs, (len(pts), 1))
     _, tri = host_closest_hit(caster, o, d)

@@ -15,6 +15,7 @@ from ._load import find_scene_file as find_scene_file
 from ._load import list_scenes as list_scenes
 from ._load import load_scene as load_scene
 from ._load import load_scene_file as load_scene_file
+from ._load import looks_like_path as looks_like_path
 from ._load import scene_config_layers as scene_config_layers
 from ._load import scene_search_path as scene_search_path
 from ._raw import derived_views as derived_views

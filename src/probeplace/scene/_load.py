@@ -123,7 +123,9 @@ def list_scenes(search_path=None) -> list[SceneEntry]:
     return out
 
 
-def _looks_like_path(x: str | os.PathLike) -> bool:
+def looks_like_path(x: str | os.PathLike) -> bool:
+    """Whether a scene argument names a file (a path object, a separator or a suffix) rather than a
+    built-in or search-path scene name."""
     if isinstance(x, os.PathLike):
         return True
     return os.sep in x or (os.altsep is not None and os.altsep in x) or Path(x).suffix != ""
@@ -162,7 +164,7 @@ def load_scene(
         ConfigError: an invalid sidecar or ``overrides`` (the message names the file and key); the
             sidecar and ``overrides`` are read and checked before the scene file.
     """
-    if _looks_like_path(name_or_path):
+    if looks_like_path(name_or_path):
         return load_scene_file(
             Path(name_or_path), overrides=overrides, sidecar=sidecar, require_light=require_light
         )
