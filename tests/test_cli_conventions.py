@@ -39,7 +39,7 @@ def test_version(capsys):
 def test_verbosity_flags_on_every_subcommand(flag, where, capsys, monkeypatch):
     """Every subcommand takes -v/-q after its name as well as before; -q also turns progress bars off."""
     monkeypatch.setattr(_progress, "_on_terminal", lambda: True)
-    sub = build_parser()._subparsers._group_actions[0].choices
+    sub = build_parser(lazy=False)._subparsers._group_actions[0].choices  # every option loaded
     assert {"scenes", "place", "evaluate", "export", "demo"} <= set(sub)
     for name, parser in sub.items():
         opts = {s for a in parser._actions for s in a.option_strings}

@@ -149,14 +149,10 @@ def _export_input(args: argparse.Namespace):
     return probes
 
 
-def _add_export_parser(sub) -> None:
-    from .export._registry import FORMATS  # NumPy only: keeps `probeplace --help` light
+def _fill_export_parser(e: argparse.ArgumentParser) -> None:
+    from .export._registry import FORMATS  # NumPy only
 
-    e = sub.add_parser(
-        "export",
-        help="write a probe set to an engine format (docs/export.md)",
-        description="Export probes: " + "; ".join(f"{k}: {f.summary}" for k, f in FORMATS.items()),
-    )
+    e.description = "Export probes: " + "; ".join(f"{k}: {f.summary}" for k, f in FORMATS.items())
     e.add_argument("probes", help="ProbeSet .json (probeplace place), baked .npz, or an exported file")
     e.add_argument("--format", required=True, choices=sorted(FORMATS), help="output format")
     e.add_argument("--out", required=True, help="output file (ddgi: the .json sidecar)")
@@ -334,18 +330,108 @@ def _add_log_options(parser: argparse.ArgumentParser, default) -> None:
     )
 
 
-def build_parser() -> argparse.ArgumentParser:
+class _Subcommand(argparse.ArgumentParser):
+    """A subcommand's parser whose options are added on first use (parsing it, its help), so that building
+    the whole parser imports no stage: ``--help``, ``--version``, ``export``, ``scenes`` and ``cache`` load
+    no JAX (issue 32). ``_fill(parser)`` adds the options; ``_choice`` is its line in the top-level help."""
+
+    _fill = None
+    _choice = None
+
+    def filled(self) -> _Subcommand:
+        """This parser with its options added (once) and the conventions every subcommand follows."""
+        fill, self._fill = self._fill, None
+        if fill is not None:
+            fill(self)
+            self.formatter_class = _HelpFormatter  # defaults in its help, -v/-q after its name
+            if self.description is None:
+                self.description = self._choice.help
+            _add_log_options(self, argparse.SUPPRESS)
+        return self
+
+    def parse_known_args(self, args=None, namespace=None):
+        return super(_Subcommand, self.filled()).parse_known_args(args, namespace)
+
+    def format_help(self) -> str:
+        return super(_Subcommand, self.filled()).format_help()
+
+    def format_usage(self) -> str:
+        return super(_Subcommand, self.filled()).format_usage()
+
+
+class _Into:
+    """The ``sub`` a stage's ``add_parser(sub)`` registers on when its subcommand is filled lazily: its
+    ``sub.add_parser(name, help=..., **kwargs)`` returns the parser already listed under ``name``."""
+
+    def __init__(self, parser: _Subcommand):
+        self.parser = parser
+
+    def add_parser(self, name: str, help: str | None = None, **kwargs) -> _Subcommand:
+        assert name == self.parser.prog.split()[-1], (name, self.parser.prog)
+        if help is not None:
+            self.parser._choice.help = help
+        for key, value in kwargs.items():  # description, epilog, formatter_class
+            setattr(self.parser, key, value)
+        return self.parser
+
+
+class _Main(argparse.ArgumentParser):
+    """The top-level parser: its help first fills the subcommands whose line it cannot know without
+    loading them (``evaluate``: the line is the stage's own)."""
+
+    def format_help(self) -> str:
+        for parser in self._subparsers._group_actions[0].choices.values():
+            if parser._choice.help is None:
+                parser.filled()
+        return super().format_help()
+
+
+def _lazy(sub, name: str, help: str | None, fill) -> None:
+    """List subcommand ``name`` (``help``: its line; None: ``fill`` sets it) whose options ``fill(parser)``
+    adds on first use."""
+    parser = sub.add_parser(name, help=help)
+    parser._fill, parser._choice = fill, sub._choices_actions[-1]
+
+
+def build_parser(lazy: bool = True) -> argparse.ArgumentParser:
+    """The ``probeplace`` parser; each subcommand's options load on first use (``lazy=False``: all now,
+    for code that inspects them)."""
     from . import __version__
 
-    p = argparse.ArgumentParser(prog="probeplace", description=__doc__, formatter_class=_HelpFormatter)
+    p = _Main(prog="probeplace", description=__doc__, formatter_class=_HelpFormatter)
     p.add_argument("--version", action="version", version=f"probeplace {__version__}")
     _add_log_options(p, False)
-    sub = p.add_subparsers(dest="command", required=True)
-    s = sub.add_parser(
+    sub = p.add_subparsers(dest="command", required=True, parser_class=_Subcommand)
+    _lazy(
+        sub,
         "scenes",
-        help="list built-in scenes and scenes found on the search path; with NAME, what that scene's "
-        "sidecar resolved to (lights, cameras, units, bounds, triangles)",
+        "list built-in scenes and scenes found on the search path; with NAME, what that scene's sidecar "
+        "resolved to (lights, cameras, units, bounds, triangles)",
+        _fill_scenes_parser,
     )
+    _lazy(
+        sub,
+        "demo",
+        "the stage tour on the built-in Cornell box: scene, SDF, surface samples, G-buffer, reference "
+        "render, automatic placement, bake and export, into one folder (`make demo` instead runs the "
+        "cornell_comparison experiment)",
+        _fill_demo_parser,
+    )
+    _lazy(sub, "place", _PLACE_HELP, _fill_place_parser)
+    _lazy(sub, "export", _EXPORT_HELP, _fill_export_parser)
+    _lazy(sub, "evaluate", None, _fill_evaluate_parser)  # --- evaluate (issue 4) ---
+    from ._cache_cli import add_parser as _add_cache  # --- cache (issue 32); imports no JAX ---
+
+    _add_cache(p, sub)
+    cache = sub.choices["cache"]
+    cache._fill, cache._choice = (lambda parser: None), sub._choices_actions[-1]
+    if not lazy:
+        for parser in sub.choices.values():
+            parser.filled()
+    return p
+
+
+def _fill_scenes_parser(s: argparse.ArgumentParser) -> None:
     s.add_argument(
         "name",
         nargs="?",
@@ -358,37 +444,29 @@ def build_parser() -> argparse.ArgumentParser:
 
     add_scene_options(s)
     s.set_defaults(func=_cmd_scenes)
-    d = sub.add_parser(
-        "demo",
-        help="the stage tour on the built-in Cornell box: scene, SDF, surface samples, G-buffer, reference "
-        "render, automatic placement, bake and export, into one folder (`make demo` instead runs the "
-        "cornell_comparison experiment)",
-    )
+
+
+def _fill_demo_parser(d: argparse.ArgumentParser) -> None:
     d.add_argument("--out", default="results/demo", help="output folder")
     d.add_argument("--config", help="YAML config (default: built-in values, as in configs/demo.yaml)")
     d.set_defaults(func=_cmd_demo)
-    _add_place_parser(sub)
-    _add_export_parser(sub)
-    from .evaluate._cli import add_parser as _add_evaluate  # --- evaluate (issue 4) ---
-
-    _add_evaluate(sub)
-    from ._cache_cli import add_parser as _add_cache  # --- cache (issue 32) ---
-
-    _add_cache(p, sub)
-    for name, parser in sub.choices.items():  # every subcommand: defaults in its help, -v/-q after it
-        parser.formatter_class = _HelpFormatter
-        if parser.description is None:
-            parser.description = next(a.help for a in sub._choices_actions if a.dest == name)
-        _add_log_options(parser, argparse.SUPPRESS)
-    return p
 
 
-def _add_place_parser(sub) -> None:
-    """``probeplace place``: methods and refiners from their registries."""
+def _fill_evaluate_parser(e: _Subcommand) -> None:
+    from .evaluate._cli import add_parser
+
+    add_parser(_Into(e))
+
+
+_PLACE_HELP = "place probes in a scene and write a ProbeSet JSON file + top view"
+_EXPORT_HELP = "write a probe set to an engine format (docs/export.md)"
+
+
+def _fill_place_parser(pl: argparse.ArgumentParser) -> None:
+    """``probeplace place``: methods and refiners from their registries (imports the placement stage)."""
     from .placement import OBJECTIVES, REFINERS, get_method, method_names
     from .scene import add_scene_options
 
-    pl = sub.add_parser("place", help="place probes in a scene and write a ProbeSet JSON file + top view")
     pl.add_argument("scene", help="scene name or file (see `probeplace scenes`)")
     add_scene_options(pl)
     pl.add_argument(
