@@ -77,7 +77,8 @@ def test_help_shows_every_default_and_says_what_demo_runs():
             shown = f"(default: {a.default})" in " ".join(text.split())
             assert shown or "default" in a.help, f"{name} {a.option_strings[0]}: default not shown"
     evaluate = " ".join(sub.choices["evaluate"].format_help().split())
-    for default in ("(default: 128)", "(default: 64)", "(default: lightfield)", "(default: results/eval)"):
+    runner = ("(default: 64, the runner's eval.width)", "(default: 16, the runner's tracer.spp)")
+    for default in (*runner, "(default: lightfield, the runner's eval.shading)", "(default: results/eval)"):
         assert default in evaluate
     demo = next(a.help for a in sub._choices_actions if a.dest == "demo")
     assert "stage tour" in demo and "cornell_comparison" in demo and "default experiment" not in demo

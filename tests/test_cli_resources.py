@@ -135,11 +135,13 @@ def test_full_disk_is_refused_before_any_work(tmp_path, capsys, no_slow_work, mo
     before = set(tmp_path.iterdir()) | {tmp_path / "in.json"}
     out = tmp_path / "new" / "out"
     line = refused(_argv(command, tmp_path, out), capsys, "--out", "cannot write", str(out))
-    # evaluate knows its output's size (an upper bound from the image size, 128² by default); the others
-    # ask for one block
+    # evaluate knows its output's size (an upper bound from the image size, the runner's by default); the
+    # others ask for one block
+    from probeplace.evaluate._cli import runner_defaults
     from probeplace.evaluate._write import evaluation_bytes
 
-    need = evaluation_bytes(128, 128) if command == "evaluate" else 4096
+    d = runner_defaults()
+    need = evaluation_bytes(d["width"], d["height"]) if command == "evaluate" else 4096
     assert f"it needs at least {need} bytes, 100 bytes are free" in line
     assert set(tmp_path.iterdir()) <= before
 

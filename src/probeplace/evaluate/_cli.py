@@ -1,11 +1,21 @@
-"""``probeplace evaluate``: evaluate a probe set (ProbeSet JSON, baked first; or a baked .npz) on a view."""
+"""``probeplace evaluate``: evaluate a probe set (ProbeSet JSON, baked first; or a baked .npz) on a view.
+
+The command is the experiment runner's bake and evaluation: every setting it does not name on its command
+line is the runner's default (``ExperimentConfig()``'s ``bake``, ``tracer`` and ``eval`` groups, read
+through ``experiment._schema.bake_values`` / ``eval_values``: one place for the defaults of both), the
+random keys are split from ``--seed`` as the runner splits its run's seed, and the glossy rays run on the
+wavefront light-field tracer (``TRACE_ENGINE``; the runner's presets' engine).
+"""
 
 from __future__ import annotations
 
 import argparse
 import json
 import re
+import sys
+import time
 from pathlib import Path
+from typing import ClassVar
 
 import numpy as np
 
@@ -20,6 +30,8 @@ def add_parser(sub) -> None:
     e = sub.add_parser(
         "evaluate",
         help="evaluate a probe set on a scene view: MSE per component vs the path tracer (docs/evaluate.md)",
+        description="Every default is the experiment runner's (experiments/run.py, configs/): the same "
+        "bake and evaluation as a run of it.",
     )
     e.add_argument("--scene", required=True, help="scene name or file (see `probeplace scenes`)")
     add_scene_options(e)
@@ -28,65 +40,156 @@ def add_parser(sub) -> None:
     e.add_argument("--out", default="results/eval", help="output folder (metrics.json is written last)")
     e.add_argument(
         "--shading",
-        default="lightfield",
         choices=["lightfield", "irradiance", "sh"],
-        help="diffuse shading from the probes",
+        help="diffuse shading from the probes {runner}",
+        action=_RunnerDefault,
     )
-    e.add_argument("--width", type=int, default=128, help="image width, pixels")
-    e.add_argument("--height", type=int, default=128, help="image height, pixels")
-    e.add_argument("--spp", type=int, default=64, help="reference paths per pixel")
-    e.add_argument("--glossy-spp", type=int, default=8, help="GGX directions per pixel (CRN)")
+    e.add_argument("--width", type=int, help="image width, pixels {runner}", action=_RunnerDefault)
+    e.add_argument("--height", type=int, help="image height, pixels {runner}", action=_RunnerDefault)
+    e.add_argument("--spp", type=int, help="reference paths per pixel {runner}", action=_RunnerDefault)
+    e.add_argument(
+        "--glossy-spp", type=int, help="GGX directions per pixel (CRN) {runner}", action=_RunnerDefault
+    )
+    e.add_argument(
+        "--glossy-ref-spp",
+        type=int,
+        help="reference paths per GGX direction (CRN glossy reference, ≥ 2) {runner}",
+        action=_RunnerDefault,
+    )
     e.add_argument(
         "--max-depth",
         type=int,
-        default=8,
         help="camera path depth in segments; a bake from a ProbeSet traces max-depth − 1 "
-        "(probes.bake_depth_for) and a baked .npz must have been baked so",
+        "(probes.bake_depth_for) and a baked .npz must have been baked so {runner}",
+        action=_RunnerDefault,
+    )
+    e.add_argument(
+        "--trace-engine",
+        metavar="{wavefront,per_ray}",
+        help="how the light-field tracer runs the glossy rays: wavefront (the same hits as per_ray, "
+        "many times faster) or per_ray (the simple reference) {runner}",
+        action=_RunnerDefault,
+    )
+    e.add_argument(
+        "--timing-repeats",
+        type=int,
+        help="shading runs timed (median) after the compile run {runner}",
+        action=_RunnerDefault,
     )
     e.add_argument(
         "--hierarchy",
-        default="hiz",
         choices=["hiz", "two_level", "flat"],
-        help="light-field tracer's distance hierarchy",
+        help="light-field tracer's distance hierarchy {runner}",
+        action=_RunnerDefault,
     )
-    e.add_argument("--seed", type=int, default=0, help="random seed of the bake and the renders")
     e.add_argument(
-        "--radiance-res",
-        type=int,
-        default=None,
-        help="bake: radiance map resolution (default: from the scene)",
+        "--seed", type=int, help="random seed of the bake and the renders {runner}", action=_RunnerDefault
     )
-    e.add_argument("--bake-spp", type=int, default=16, help="bake: paths per texel ray")
+    e.add_argument(
+        "--radiance-res", type=int, help="bake: radiance map resolution {runner}", action=_RunnerDefault
+    )
+    e.add_argument("--bake-spp", type=int, help="bake: paths per texel ray {runner}", action=_RunnerDefault)
     e.add_argument("--save-baked", default=None, help="bake: also save the baked probes to this .npz")
     e.add_argument(
         "--geometry-res",
         type=int,
-        default=None,
         help="bake: geometry (distance, normal) map resolution (default: --radiance-res)",
     )
     e.add_argument(
         "--backend",
-        default="jax",
         choices=BACKEND_CHOICES,
         help="path tracer of the bake and the references (mitsuba: Dr.Jit LLVM on the CPU, faster; auto: "
-        "mitsuba on a CPU where it loads, else jax)",
+        "mitsuba on a CPU where it loads, else jax) {runner}",
+        action=_RunnerDefault,
     )
     e.set_defaults(func=run)
 
 
-# EvalConfig / BakeConfig fields set from an option of the same name: their messages name the option.
+#: The light-field tracer's engine of the command's glossy rays: the wavefront engine (the same hits as
+#: ``per_ray``; on a 262k-triangle room at 64×48 the per-ray engine took ~7 min of shading). The runner's
+#: schema keeps ``per_ray`` for its bare default (``eval.trace_engine``); its presets all run this one.
+TRACE_ENGINE = "wavefront"
+
+# The options whose default is the runner's: option dest → where the runner keeps it (for messages).
+RUNNER_KEYS = {
+    "width": "eval.width",
+    "height": "eval.height",
+    "spp": "tracer.spp",
+    "glossy_spp": "eval.glossy_spp",
+    "glossy_ref_spp": "eval.glossy_ref_spp",
+    "max_depth": "tracer.max_depth",
+    "shading": "eval.shading",
+    "timing_repeats": "eval.timing_repeats",
+    "backend": "eval.backend",
+    "seed": "seed",
+    "radiance_res": "bake.radiance_res",
+    "geometry_res": "bake.geometry_res",
+    "bake_spp": "bake.spp",
+    "trace_engine": "eval.trace_engine of its presets",
+    "hierarchy": "probes.TraceConfig.hierarchy",
+}
+
+
+def runner_defaults() -> dict:
+    """The default of every option of :data:`RUNNER_KEYS`, read from the runner's defaults
+    (``ExperimentConfig()``: its ``bake``, ``tracer`` and ``eval`` groups; the tracer's hierarchy is the
+    library's ``TraceConfig``'s, as in a run), the trace engine :data:`TRACE_ENGINE`."""
+    from ..experiment._schema import ExperimentConfig, bake_values, eval_values
+    from ..probes._trace import TraceConfig
+
+    cfg = ExperimentConfig()
+    ev, bake = eval_values(cfg), bake_values(cfg)
+    out = {k: ev[k] for k in RUNNER_KEYS if k in ev}
+    out |= {"radiance_res": bake["radiance_res"], "geometry_res": bake["geometry_res"]}
+    out |= {"bake_spp": cfg.bake.spp, "seed": cfg.seed, "trace_engine": TRACE_ENGINE}
+    out["hierarchy"] = TraceConfig().hierarchy
+    return out
+
+
+class _RunnerDefault(argparse._StoreAction):
+    """An option whose default is the runner's: parsed as None when not given; its help's ``{runner}``
+    reads ``(default: 64, eval.width)`` from the runner's defaults, only when ``--help`` prints it (the
+    parser stays light to build)."""
+
+    _defaults: dict | None = None
+
+    @property
+    def help(self) -> str:
+        if "{runner}" not in self._help:
+            return self._help
+        if _RunnerDefault._defaults is None:
+            _RunnerDefault._defaults = runner_defaults()
+        value = _RunnerDefault._defaults[self.dest]
+        return self._help.replace("{runner}", f"(default: {value}, the runner's {RUNNER_KEYS[self.dest]})")
+
+    @help.setter
+    def help(self, text: str) -> None:
+        self._help = text
+
+
+def resolved_options(args: argparse.Namespace) -> dict:
+    """The value of every option of :data:`RUNNER_KEYS`: the command line's, else the runner's default."""
+    given = {k: getattr(args, k, None) for k in RUNNER_KEYS}
+    return {k: v if given[k] is None else given[k] for k, v in runner_defaults().items()}
+
+
+# EvalConfig / BakeConfig / TraceConfig fields set from an option of the same name: their messages name
+# the option.
 _OPTIONS = (
-    *("width", "height", "spp", "glossy_spp", "max_depth", "shading", "seed", "backend"),
-    *("radiance_res", "geometry_res"),
+    *("width", "height", "spp", "glossy_spp", "glossy_ref_spp", "max_depth", "shading", "seed"),
+    *("timing_repeats", "backend", "radiance_res", "geometry_res", "hierarchy"),
 )
 
 
 def _as_option(e: ConfigError) -> ConfigError:
     """``EvalConfig.width must be ...`` as ``--width: EvalConfig.width must be ...`` (the option first)."""
-    m = re.match(r"(?:EvalConfig|BakeConfig)\.(\w+)", str(e))
-    if m is None or m.group(1) not in _OPTIONS:
+    m = re.match(r"(EvalConfig|BakeConfig|TraceConfig)\.(\w+)", str(e))
+    if m is None:
         return e
-    return ConfigError(f"--{m.group(1).replace('_', '-')}: {e}")
+    name = "trace_engine" if m.group(1, 2) == ("TraceConfig", "engine") else m.group(2)
+    if name not in (*_OPTIONS, "trace_engine"):
+        return e
+    return ConfigError(f"--{name.replace('_', '-')}: {e}")
 
 
 def check_eval_memory(config, what: str) -> None:
@@ -105,31 +208,41 @@ def check_eval_memory(config, what: str) -> None:
     )
 
 
-def _eval_config(args: argparse.Namespace):
-    """The evaluation settings of the options, checked (messages name the option) and sized."""
+def eval_config(args: argparse.Namespace):
+    """The evaluation settings: the runner's (``experiment._schema.eval_values`` of ``ExperimentConfig()``)
+    with the options given over them, checked (messages name the option) and sized."""
+    from ..experiment._schema import ExperimentConfig, eval_values
     from ..probes._trace import TraceConfig
     from . import EvalConfig
 
+    opt = resolved_options(args)
+    values = eval_values(ExperimentConfig())
+    values |= {k: opt[k] for k in values if k in opt}
     try:
-        config = EvalConfig(
-            width=args.width,
-            height=args.height,
-            spp=args.spp,
-            glossy_spp=args.glossy_spp,
-            max_depth=args.max_depth,
-            shading=args.shading,
-            trace=TraceConfig(hierarchy=args.hierarchy),
-            seed=args.seed,
-            progress=True,
-            backend=args.backend,
-        )
+        trace = TraceConfig(engine=opt["trace_engine"], hierarchy=opt["hierarchy"])
+        config = EvalConfig(**values, trace=trace, seed=opt["seed"])
     except ConfigError as e:
         raise _as_option(e) from None
     check_eval_memory(config, "--width × --height: the reference render")
     return config
 
 
-def _checked_outputs(args: argparse.Namespace, path: Path) -> None:
+def bake_config(args: argparse.Namespace):
+    """The bake settings: the runner's (``experiment._schema.bake_values`` of ``ExperimentConfig()``) with
+    ``--radiance-res`` / ``--geometry-res`` over them, checked (messages name the option)."""
+    from ..experiment._schema import ExperimentConfig, bake_values
+    from ..probes import BakeConfig
+
+    opt = resolved_options(args)
+    values = bake_values(ExperimentConfig())
+    values |= {"radiance_res": opt["radiance_res"], "geometry_res": opt["geometry_res"]}
+    try:
+        return BakeConfig(**values)
+    except ConfigError as e:
+        raise _as_option(e) from None
+
+
+def _checked_outputs(args: argparse.Namespace, path: Path, config) -> None:
     """--save-baked and --out: the right kind of input, and writable, before any work."""
     from .._core._checks import check_writable_file, check_writable_folder
     from ._write import evaluation_bytes
@@ -140,7 +253,7 @@ def _checked_outputs(args: argparse.Namespace, path: Path) -> None:
         if Path(args.save_baked).suffix != ".npz":
             raise ConfigError(f"--save-baked must name a .npz file, got {args.save_baked}")
         check_writable_file(args.save_baked, "--save-baked")
-    check_writable_folder(args.out, "--out", size=evaluation_bytes(args.width, args.height))
+    check_writable_folder(args.out, "--out", size=evaluation_bytes(config.width, config.height))
 
 
 def _checked_inputs(args: argparse.Namespace):
@@ -148,14 +261,14 @@ def _checked_inputs(args: argparse.Namespace):
     bake config or None, ProbeSet or baked probes)."""
     from .._core import load_probe_set
     from .._core._checks import check_npz_archive
-    from ..probes import BakeConfig, load_probes
+    from ..probes import load_probes
 
     path = Path(args.probes)
     if path.suffix not in (".json", ".npz"):
         raise ConfigError(f"--probes must be a ProbeSet .json or a baked .npz, got {path}")
-    config = _eval_config(args)  # first: the output's size bound needs a sensible image size
-    _checked_outputs(args, path)
-    if args.backend == "mitsuba":  # refuse before loading anything if its LLVM variant cannot load
+    config = eval_config(args)  # first: the output's size bound needs a sensible image size
+    _checked_outputs(args, path, config)
+    if config.backend == "mitsuba":  # refuse before loading anything if its LLVM variant cannot load
         from ..render._mitsuba_backend import load_mitsuba
 
         try:
@@ -166,14 +279,10 @@ def _checked_inputs(args: argparse.Namespace):
         probes = load_probes(check_npz_archive(path, "--probes"))
         bake_cfg = None
     else:
-        try:
-            bake_cfg = BakeConfig(
-                radiance_res=args.radiance_res, geometry_res=args.geometry_res, progress=True
-            )
-        except ConfigError as e:
-            raise _as_option(e) from None
-        if isinstance(args.bake_spp, bool) or args.bake_spp < 1:
-            raise ConfigError(f"--bake-spp must be a positive integer, got {args.bake_spp}")
+        bake_cfg = bake_config(args)
+        bake_spp = resolved_options(args)["bake_spp"]
+        if isinstance(bake_spp, bool) or bake_spp < 1:
+            raise ConfigError(f"--bake-spp must be a positive integer, got {bake_spp}")
         probes, meta = load_probe_set(path)
         _check_recorded_scene(meta, path, args.scene)
     if not bool(np.asarray(probes.active).any()):
@@ -183,9 +292,9 @@ def _checked_inputs(args: argparse.Namespace):
 
 def _scene_key(name_or_path: str) -> str:
     """The name a scene loads under: a file's stem (``load_scene`` names a file scene so), else the name."""
-    from ..scene import looks_like_path
+    from ..scene._load import _looks_like_path
 
-    return Path(name_or_path).stem if looks_like_path(name_or_path) else str(name_or_path)
+    return Path(name_or_path).stem if _looks_like_path(name_or_path) else str(name_or_path)
 
 
 def _check_recorded_scene(meta: dict, path: Path, scene: str) -> None:
@@ -230,6 +339,41 @@ def _check_probes_fit(probes, path: Path, scene, args: argparse.Namespace, confi
     check_views_and_lights(scene, args.scene, overrides, view=view)
 
 
+class _Stages:
+    """One line on stderr as each stage starts (``probeplace evaluate: [  12.3 s] bake: ...``), the seconds
+    since the command started first; none with ``--quiet`` (``_core._progress.set_progress``)."""
+
+    _EVAL: ClassVar[dict[str, str]] = {
+        "reference": "reference render: {w}×{h} pixels, {spp} paths per pixel",
+        "primary": "primary hits and GGX samples: {gspp} per pixel",
+        "crn": "glossy reference (CRN): {gref} paths per GGX direction",
+        "shading": "probe shading ({engine} tracer): 1 compile run + {rep} timed",
+        "perfect_trace": "perfect trace of the glossy rays",
+        "score": "scoring",
+    }
+
+    def __init__(self, config) -> None:
+        from .._core import _progress
+
+        self.on = _progress._enabled
+        self.t0 = time.perf_counter()
+        self.fields = {
+            "w": config.width,
+            "h": config.height,
+            "spp": config.spp,
+            "gspp": config.glossy_spp,
+            "gref": config.glossy_ref_spp,
+            "engine": config.trace.engine,
+            "rep": config.timing_repeats,
+        }
+
+    def __call__(self, text: str) -> None:
+        if self.on:
+            text = self._EVAL[text].format(**self.fields) if text in self._EVAL else text
+            print(f"probeplace evaluate: [{time.perf_counter() - self.t0:7.1f} s] {text}", file=sys.stderr)
+            sys.stderr.flush()
+
+
 def run(args: argparse.Namespace) -> int:
     import jax
 
@@ -240,6 +384,7 @@ def run(args: argparse.Namespace) -> int:
 
     overrides = scene_overrides_from_args(args)  # a bad --sun/--sky/--camera fails before any work
     path, config, bake_cfg, probes = _checked_inputs(args)
+    say = _Stages(config)  # its first line after the last refusal: a refusal stays one line
     scene = load_scene(args.scene, overrides=overrides, require_light=True)
     views = [c.name for c in scene.views]
     if not views:
@@ -248,27 +393,37 @@ def run(args: argparse.Namespace) -> int:
     if view not in views:
         raise ConfigError(f"--view: scene {scene.name!r} has no view {view!r}; views: {views}")
     _check_probes_fit(probes, path, scene, args, config, overrides, view)
+    say(f"scene {scene.name} loaded and checked; building the ray caster")
     caster = make_caster(scene, use="render")
+    opt = resolved_options(args)
+    # the runner's keys: the bake's and the evaluation's split from the seed (experiment._run._execute)
+    k_bake, k_eval = jax.random.split(jax.random.key(opt["seed"]))
     if path.suffix == ".npz":
         lf = probes
     else:
+        backend = config.backend  # --backend (or the runner's) for the bake too
+        n = int(np.asarray(probes.active).sum())
+        res = bake_cfg.radiance_res
+        say(f"bake: {n} probes, {res}² radiance maps, {opt['bake_spp']} paths per texel ray ({backend})")
         lf = bake_probes(
             scene,
             probes,
             caster=caster,
             radiance_fn=path_traced_radiance(
                 scene,
-                spp=args.bake_spp,
+                spp=opt["bake_spp"],
                 max_depth=bake_depth_for(config.max_depth),
-                caster=caster if args.backend == "jax" else None,
-                backend=args.backend,
+                caster=caster if backend == "jax" else None,
+                backend=backend,
             ),
-            key=jax.random.key(args.seed),
+            key=k_bake,
             config=bake_cfg,
         )
         if args.save_baked:
+            say(f"writing {args.save_baked}")
             save_probes(args.save_baked, lf)
-    result = evaluate(scene, lf, view=view, config=config, caster=caster)
+    result = evaluate(scene, lf, view=view, config=config, caster=caster, key=k_eval, stage=say)
+    say(f"writing {args.out}")
     paths = write_evaluation(result, args.out)
     m = result.metrics
     keys = ("mse_glossy_indirect", "noise_floor_glossy_indirect", "mse_diffuse_indirect", "mse_full")

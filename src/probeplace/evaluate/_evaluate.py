@@ -130,6 +130,7 @@ def evaluate(
     config: EvalConfig | None = None,
     caster=None,
     key: jax.Array | None = None,
+    stage=None,
 ) -> EvalResult:
     """Render one view with the probes and with the reference; compare per component (module docstring).
 
@@ -140,6 +141,8 @@ def evaluate(
         config: image size, samples, shading method, tracer settings (default ``EvalConfig()``).
         caster: exact ray caster (default ``render.default_caster(scene)``).
         key: PRNG key (default: ``config.seed``).
+        stage: called with each step's name before it runs (``"reference"``, ``"primary"``, ``"crn"``,
+            ``"shading"``, ``"perfect_trace"``, ``"score"``): ``probeplace evaluate``'s stage messages.
 
     Returns:
         :class:`EvalResult` with metrics (docs/evaluate.md) and images.
@@ -159,13 +162,20 @@ def evaluate(
         raise ConfigError("the probe set has no usable probe (all inactive or inside geometry)")
     caster = default_caster(scene) if caster is None else caster
     seed = int(seed_from_key(key)) if key is not None else int(config.seed) & 0xFFFFFFFF
+    stage = stage or (lambda name: None)
 
+    stage("reference")
     ref = render_reference(scene, camera, config, seed=seed, caster=caster)
+    stage("primary")
     prim = sample_primary(scene, camera, config, seed=seed, caster=caster)
+    stage("crn")
     crn = crn_reference(scene, prim, config, seed=seed, caster=caster)
+    stage("shading")
     maps = glossy_maps(lf, config.glossy_filter, include_emission=False)  # built once, like a bake
     shading = shade_probes(scene, lf, prim, config, maps=maps)
+    stage("perfect_trace")
     perfect = perfect_trace(lf, prim, config, caster=caster, maps=maps)
+    stage("score")
     return score(scene, lf, view, config, seed, ref, prim, crn, shading, perfect)
 
 

@@ -252,21 +252,36 @@ def _rekeyed(lib: type, values: dict, keys: dict[str, str]) -> Any:
         raise ConfigError(f"{keys[m.group(1)]}: {rest.replace('≥', '>=')}") from None
 
 
+def bake_values(cfg: ExperimentConfig) -> dict:
+    """The keyword arguments of ``probes.BakeConfig`` a run bakes with: the ``bake`` group's library keys,
+    the run's ``progress``. ``probeplace evaluate`` takes its bake defaults from these of
+    ``ExperimentConfig()`` (evaluate/_cli.py): one place for the defaults of both."""
+    return {**_library_values(cfg.bake, _LibBakeConfig), "progress": cfg.progress}
+
+
+def eval_values(cfg: ExperimentConfig) -> dict:
+    """The keyword arguments of ``evaluate.EvalConfig`` a run evaluates with, but ``trace`` (built from
+    ``eval.trace_engine``) and ``seed`` (the run's key): the ``eval`` group's library keys, the tracer's
+    samples and depth, the run's ``progress``. ``probeplace evaluate`` takes its defaults from these of
+    ``ExperimentConfig()`` (evaluate/_cli.py)."""
+    return {
+        **_library_values(cfg.eval, _LibEvalConfig),
+        "spp": cfg.tracer.spp,
+        "max_depth": cfg.tracer.max_depth,
+        "progress": cfg.progress,
+    }
+
+
 def bake_config(cfg: ExperimentConfig) -> _LibBakeConfig:
     """The library's bake settings of a run (``probes.BakeConfig``)."""
-    values = {**_library_values(cfg.bake, _LibBakeConfig), "progress": cfg.progress}
+    values = bake_values(cfg)
     return _rekeyed(_LibBakeConfig, values, {k: f"bake.{k}" for k in values})
 
 
 def eval_config(cfg: ExperimentConfig) -> _LibEvalConfig:
     """The library's evaluation settings of a run (``evaluate.EvalConfig``): the ``eval`` group, the
     tracer's samples and depth, the run's ``progress``."""
-    values = {
-        **_library_values(cfg.eval, _LibEvalConfig),
-        "spp": cfg.tracer.spp,
-        "max_depth": cfg.tracer.max_depth,
-        "progress": cfg.progress,
-    }
+    values = eval_values(cfg)
     keys = {**{k: f"eval.{k}" for k in values}, "spp": "tracer.spp", "max_depth": "tracer.max_depth"}
     try:
         values["trace"] = _LibTraceConfig(engine=cfg.eval.trace_engine)

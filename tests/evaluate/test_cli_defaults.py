@@ -1,0 +1,131 @@
+"""Issue 32 item 4: ``probeplace evaluate`` is the runner's evaluation. Its defaults are the runner's, read
+from one place (``experiment._schema``: the oracle here is the runner's own config, as experiments/run.py
+composes it from configs/), but for the glossy rays' engine (the wavefront tracer, the runner's presets');
+``--trace-engine``, ``--timing-repeats`` and ``--glossy-ref-spp`` reach the library configs and bad values
+are refused in one line before any slow work (``no_slow_work``)."""
+
+from __future__ import annotations
+
+import dataclasses
+
+import pytest
+
+from probeplace.cli import build_parser, main
+from probeplace.evaluate import EvalConfig
+from probeplace.evaluate._cli import TRACE_ENGINE, bake_config, eval_config, resolved_options
+from probeplace.experiment import bake_config as runner_bake_config
+from probeplace.experiment import eval_config as runner_eval_config
+from probeplace.experiment import to_config
+from probeplace.probes import BakeConfig
+from probeplace.probes._trace import ENGINES
+from tests.experiment._util import compose
+from tests.test_cli_checks import probe_json, refused
+
+
+def _args(tmp_path, *extra: str):
+    probes = probe_json(tmp_path / "p.json")
+    argv = ["evaluate", "--scene", "cornell_box", "--probes", str(probes), "--out", str(tmp_path / "ev")]
+    return build_parser().parse_args([*argv, *extra])
+
+
+def _same_fields(a, b, *, skip=()) -> None:
+    assert type(a) is type(b)
+    for f in dataclasses.fields(a):
+        if f.name not in skip:
+            assert getattr(a, f.name) == getattr(b, f.name), f.name
+
+
+def test_defaults_are_the_runners_field_by_field(tmp_path):
+    args = _args(tmp_path)
+    runner = to_config(compose([f"eval.trace_engine={TRACE_ENGINE}"]))  # the runner's, as run.py composes it
+    cli_ev, run_ev = eval_config(args), runner_eval_config(runner)
+    _same_fields(cli_ev, run_ev, skip=("trace", "seed"))  # the runner's seed is its run key's
+    _same_fields(cli_ev.trace, run_ev.trace)
+    assert (cli_ev.seed, resolved_options(args)["seed"]) == (runner.seed, runner.seed)
+    _same_fields(bake_config(args), runner_bake_config(runner))
+    assert resolved_options(args)["bake_spp"] == runner.bake.spp
+    # the runner's bare default differs only in the engine: the command runs the presets' wavefront tracer
+    bare = runner_eval_config(to_config(compose([])))
+    _same_fields(cli_ev, bare, skip=("trace",))
+    _same_fields(cli_ev.trace, bare.trace, skip=("engine",))
+    assert (cli_ev.trace.engine, TRACE_ENGINE) == ("wavefront", "wavefront")
+
+
+def test_options_reach_the_library_configs(tmp_path):
+    extra = ["--trace-engine", "per_ray", "--timing-repeats", "1", "--glossy-ref-spp", "6", "--spp", "3"]
+    extra += ["--max-depth", "5", "--hierarchy", "flat", "--radiance-res", "8", "--geometry-res", "32"]
+    args = _args(tmp_path, *extra)
+    ev, bake = eval_config(args), bake_config(args)
+    assert isinstance(ev, EvalConfig) and isinstance(bake, BakeConfig)
+    assert (ev.trace.engine, ev.trace.hierarchy) == ("per_ray", "flat")
+    assert (ev.timing_repeats, ev.glossy_ref_spp, ev.spp, ev.max_depth) == (1, 6, 3, 5)
+    assert (bake.radiance_res, bake.geometry_res) == (8, 32)
+
+
+def test_the_run_gets_the_runners_settings_and_keys(tmp_path, capsys, no_slow_work, monkeypatch):
+    """Through ``main``: the bake and the evaluation get the command line's settings over the runner's
+    (``--trace-engine per_ray`` in the EvalConfig), the runner's keys, and each stage says so on stderr."""
+    import jax
+
+    import probeplace.evaluate
+    import probeplace.geometry
+    import probeplace.probes
+
+    seen = {}
+
+    class Stop(Exception):
+        pass
+
+    def bake(scene, probes, *, caster, radiance_fn, key, config):
+        seen["bake"], seen["bake_key"] = config, key
+        return probes
+
+    def evaluate(scene, lf, *, view, config, caster, key, stage):
+        seen["eval"], seen["eval_key"] = config, key
+        raise Stop
+
+    monkeypatch.setattr(probeplace.geometry, "make_caster", lambda *a, **k: None)
+    monkeypatch.setattr(probeplace.probes, "path_traced_radiance", lambda *a, **k: None)
+    monkeypatch.setattr(probeplace.probes, "bake_probes", bake)
+    monkeypatch.setattr(probeplace.evaluate, "evaluate", evaluate)
+    probes = probe_json(tmp_path / "p.json")
+    argv = ["evaluate", "--scene", "cornell_box", "--probes", str(probes), "--out", str(tmp_path / "ev")]
+    with pytest.raises(Stop):
+        main([*argv, "--trace-engine", "per_ray", "--seed", "3"])
+    assert seen["eval"].trace.engine == "per_ray"
+    runner = to_config(compose(["seed=3"]))
+    _same_fields(seen["bake"], runner_bake_config(runner))
+    k_bake, k_eval = jax.random.split(jax.random.key(3))  # as experiment._run._execute splits them
+    for got, want in ((seen["bake_key"], k_bake), (seen["eval_key"], k_eval)):
+        assert (jax.random.key_data(got) == jax.random.key_data(want)).all()
+    err = capsys.readouterr().err
+    assert "probeplace evaluate: [" in err and "] bake: 2 probes, 16² radiance maps" in err, err
+
+
+@pytest.mark.parametrize(
+    ("extra", "needle"),
+    [
+        (["--trace-engine", "fast"], "--trace-engine: TraceConfig.engine must be one of"),
+        (["--timing-repeats", "0"], "--timing-repeats: EvalConfig.timing_repeats must be a positive int"),
+        (["--glossy-ref-spp", "1"], "--glossy-ref-spp: EvalConfig.glossy_ref_spp must be an int ≥ 2"),
+        (["--bake-spp", "0"], "--bake-spp must be a positive integer, got 0"),
+    ],
+    ids=["trace-engine", "timing-repeats", "glossy-ref-spp", "bake-spp"],
+)
+def test_bad_values_are_refused_in_one_line(tmp_path, capsys, no_slow_work, extra, needle):
+    probes = probe_json(tmp_path / "p.json")
+    argv = ["evaluate", "--scene", "cornell_box", "--probes", str(probes), "--out", str(tmp_path / "ev")]
+    refused([*argv, *extra], capsys, needle)
+    assert not (tmp_path / "ev").exists()
+
+
+def test_help_shows_the_runners_defaults(capsys):
+    with pytest.raises(SystemExit):
+        main(["evaluate", "--help"])
+    text = " ".join(capsys.readouterr().out.split())
+    d = to_config({})
+    assert f"(default: {d.eval.width}, the runner's eval.width)" in text
+    assert f"(default: {d.tracer.spp}, the runner's tracer.spp)" in text
+    assert f"(default: {d.bake.spp}, the runner's bake.spp)" in text
+    assert f"(default: {TRACE_ENGINE}, the runner's eval.trace_engine of its presets)" in text
+    assert all(e in text for e in ENGINES)
