@@ -137,7 +137,7 @@ def test_full_disk_is_refused_before_any_work(tmp_path, capsys, no_slow_work, mo
     line = refused(_argv(command, tmp_path, out), capsys, "--out", "cannot write", str(out))
     # evaluate knows its output's size (an upper bound from the image size, the runner's by default); the
     # others ask for one block
-    from probeplace.evaluate._cli import runner_defaults
+    from probeplace._evaluate_cli import runner_defaults
     from probeplace.evaluate._write import evaluation_bytes
 
     d = runner_defaults()

@@ -453,7 +453,7 @@ def _fill_demo_parser(d: argparse.ArgumentParser) -> None:
 
 
 def _fill_evaluate_parser(e: _Subcommand) -> None:
-    from .evaluate._cli import add_parser
+    from ._evaluate_cli import add_parser
 
     add_parser(_Into(e))
 

@@ -10,9 +10,9 @@ import dataclasses
 
 import pytest
 
+from probeplace._evaluate_cli import bake_config, eval_config, resolved_options
 from probeplace.cli import build_parser, main
 from probeplace.evaluate import EvalConfig
-from probeplace.evaluate._cli import TRACE_ENGINE, bake_config, eval_config, resolved_options
 from probeplace.experiment import bake_config as runner_bake_config
 from probeplace.experiment import eval_config as runner_eval_config
 from probeplace.experiment import to_config
@@ -37,18 +37,14 @@ def _same_fields(a, b, *, skip=()) -> None:
 
 def test_defaults_are_the_runners_field_by_field(tmp_path):
     args = _args(tmp_path)
-    runner = to_config(compose([f"eval.trace_engine={TRACE_ENGINE}"]))  # the runner's, as run.py composes it
+    runner = to_config(compose([]))  # the runner's defaults, as run.py composes them
     cli_ev, run_ev = eval_config(args), runner_eval_config(runner)
     _same_fields(cli_ev, run_ev, skip=("trace", "seed"))  # the runner's seed is its run key's
     _same_fields(cli_ev.trace, run_ev.trace)
     assert (cli_ev.seed, resolved_options(args)["seed"]) == (runner.seed, runner.seed)
     _same_fields(bake_config(args), runner_bake_config(runner))
     assert resolved_options(args)["bake_spp"] == runner.bake.spp
-    # the runner's bare default differs only in the engine: the command runs the presets' wavefront tracer
-    bare = runner_eval_config(to_config(compose([])))
-    _same_fields(cli_ev, bare, skip=("trace",))
-    _same_fields(cli_ev.trace, bare.trace, skip=("engine",))
-    assert (cli_ev.trace.engine, TRACE_ENGINE) == ("wavefront", "wavefront")
+    assert cli_ev.trace.engine == "wavefront"  # both run the wavefront light-field tracer
 
 
 def test_options_reach_the_library_configs(tmp_path):
@@ -127,5 +123,5 @@ def test_help_shows_the_runners_defaults(capsys):
     assert f"(default: {d.eval.width}, the runner's eval.width)" in text
     assert f"(default: {d.tracer.spp}, the runner's tracer.spp)" in text
     assert f"(default: {d.bake.spp}, the runner's bake.spp)" in text
-    assert f"(default: {TRACE_ENGINE}, the runner's eval.trace_engine of its presets)" in text
+    assert f"(default: {d.eval.trace_engine}, the runner's eval.trace_engine)" in text
     assert all(e in text for e in ENGINES)

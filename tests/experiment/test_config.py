@@ -225,8 +225,8 @@ def test_backend_and_geometry_res_defaults_and_overrides():
 def test_trace_engine_reaches_the_evaluation():
     from probeplace.experiment._schema import eval_config
 
-    assert eval_config(to_config(compose([]))).trace.engine == "per_ray"
-    assert eval_config(to_config(compose(["eval.trace_engine=wavefront"]))).trace.engine == "wavefront"
+    assert eval_config(to_config(compose([]))).trace.engine == "wavefront"
+    assert eval_config(to_config(compose(["eval.trace_engine=per_ray"]))).trace.engine == "per_ray"
 
 
 @pytest.mark.parametrize(

@@ -427,7 +427,7 @@ def _probe_doc(pos, active=None) -> str:
                        "active": [True] * len(pos) if active is None else active})  # fmt: skip
 
 
-_EVAL = ("probeplace.evaluate._cli._checked_inputs", "evaluate", "--scene", "cornell_box")
+_EVAL = ("probeplace._evaluate_cli._checked_inputs", "evaluate", "--scene", "cornell_box")
 _ONE_PROBE = {"p.json": _probe_doc([[200.0, 250.0, 200.0]])}
 
 
@@ -1324,7 +1324,6 @@ CATALOGUE += [
         r"room\.probeplace\.yaml .*keys: sun, sky, emitters",
     ),
 ]
-
 
 
 def _max_bytes_env(value: str):

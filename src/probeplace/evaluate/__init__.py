@@ -2,6 +2,7 @@
 "Evaluation protocol"; docs/evaluate.md)."""
 
 from ._config import EvalConfig as EvalConfig
+from ._config import check_eval_memory as check_eval_memory
 from ._decompose import bootstrap_ci as bootstrap_ci
 from ._decompose import glossy_terms as glossy_terms
 from ._decompose import hit_agreement as hit_agreement
@@ -22,5 +23,6 @@ from ._steps import perfect_trace as perfect_trace
 from ._steps import render_reference as render_reference
 from ._steps import sample_primary as sample_primary
 from ._steps import shade_probes as shade_probes
+from ._write import evaluation_bytes as evaluation_bytes
 from ._write import false_colour as false_colour
 from ._write import write_evaluation as write_evaluation

@@ -104,3 +104,19 @@ class EvalConfig:
             raise ConfigError(
                 "EvalConfig.perfect_trace_margin must be in [0, 1), agreement_rtol ≥ 0 and relmse_eps > 0"
             )
+
+
+def check_eval_memory(config, what: str) -> None:
+    """Refuse an evaluation whose reference render would not fit in memory, before anything is loaded
+    (the renderer's own estimate, ``_core._checks.check_image_memory``)."""
+    from .._core._checks import check_image_memory
+    from ..render import COMPONENTS, RenderConfig
+
+    check_image_memory(
+        config.width,
+        config.height,
+        config.spp,
+        components=len(COMPONENTS),
+        paths_per_batch=RenderConfig.paths_per_batch,
+        what=what,
+    )

@@ -28,6 +28,8 @@ from ._schema import RefinerConfig as RefinerConfig
 from ._schema import SceneConfig as SceneConfig
 from ._schema import TracerConfig as TracerConfig
 from ._schema import bake_config as bake_config
+from ._schema import bake_values as bake_values
 from ._schema import eval_config as eval_config
+from ._schema import eval_values as eval_values
 from ._schema import to_config as to_config
 from ._schema import validate as validate

@@ -176,12 +176,12 @@ EvalStage = _stage_schema(
         enabled: evaluate at all.
         view: camera name of the scene.
         trace_engine: how the light-field tracer runs the glossy rays (``probes.TraceConfig.engine``):
-            ``"per_ray"`` (default, the simple reference) or ``"wavefront"`` (the same hits; ~20× faster
-            shading on the Cornell demo at 64² geometry maps, 3× its compile time).
+            ``"wavefront"`` (default: the per-ray engine's hits, ~20× faster shading on the Cornell demo at
+            64² geometry maps, 3× its compile time) or ``"per_ray"`` (the simple reference it is held to).
     """,
     _LibEvalConfig,
     head=[("enabled", bool, field(default=True)), ("view", str, field(default="front"))],
-    tail=[("trace_engine", str, field(default="per_ray"))],
+    tail=[("trace_engine", str, field(default="wavefront"))],
     runner_set={"spp", "max_depth", "progress", "seed"},
     defaults={},
 )
@@ -255,7 +255,7 @@ def _rekeyed(lib: type, values: dict, keys: dict[str, str]) -> Any:
 def bake_values(cfg: ExperimentConfig) -> dict:
     """The keyword arguments of ``probes.BakeConfig`` a run bakes with: the ``bake`` group's library keys,
     the run's ``progress``. ``probeplace evaluate`` takes its bake defaults from these of
-    ``ExperimentConfig()`` (evaluate/_cli.py): one place for the defaults of both."""
+    ``ExperimentConfig()`` (the evaluate command, _evaluate_cli.py): one place for the defaults of both."""
     return {**_library_values(cfg.bake, _LibBakeConfig), "progress": cfg.progress}
 
 
@@ -263,7 +263,7 @@ def eval_values(cfg: ExperimentConfig) -> dict:
     """The keyword arguments of ``evaluate.EvalConfig`` a run evaluates with, but ``trace`` (built from
     ``eval.trace_engine``) and ``seed`` (the run's key): the ``eval`` group's library keys, the tracer's
     samples and depth, the run's ``progress``. ``probeplace evaluate`` takes its defaults from these of
-    ``ExperimentConfig()`` (evaluate/_cli.py)."""
+    ``ExperimentConfig()`` (the evaluate command, _evaluate_cli.py)."""
     return {
         **_library_values(cfg.eval, _LibEvalConfig),
         "spp": cfg.tracer.spp,
@@ -379,7 +379,7 @@ def _check_sizes(cfg: ExperimentConfig, bake, ev) -> None:
     """Refuse, before any work, a bake batch or an evaluation image that would not fit in memory (the
     estimates ``bake_probes`` and the renderer make, for one probe and the run's image)."""
     from .._core._errors import check_memory
-    from ..evaluate._cli import check_eval_memory
+    from ..evaluate import check_eval_memory
 
     if cfg.bake.enabled and bake.radiance_res:
         res, geo = bake.radiance_res, bake.geometry_res or bake.radiance_res

@@ -4,7 +4,7 @@ The command is the experiment runner's bake and evaluation: every setting it doe
 line is the runner's default (``ExperimentConfig()``'s ``bake``, ``tracer`` and ``eval`` groups, read
 through ``experiment._schema.bake_values`` / ``eval_values``: one place for the defaults of both), the
 random keys are split from ``--seed`` as the runner splits its run's seed, and the glossy rays run on the
-wavefront light-field tracer (``TRACE_ENGINE``; the runner's presets' engine).
+wavefront light-field tracer (the runner's ``eval.trace_engine``).
 """
 
 from __future__ import annotations
@@ -19,13 +19,13 @@ from typing import ClassVar
 
 import numpy as np
 
-from .._core import ConfigError
+from ._core import ConfigError
 
 
 def add_parser(sub) -> None:
     """Register the ``evaluate`` subcommand on an argparse subparsers object."""
-    from ..render import BACKEND_CHOICES
-    from ..scene import add_scene_options
+    from .render import BACKEND_CHOICES
+    from .scene import add_scene_options
 
     e = sub.add_parser(
         "evaluate",
@@ -105,11 +105,6 @@ def add_parser(sub) -> None:
     e.set_defaults(func=run)
 
 
-#: The light-field tracer's engine of the command's glossy rays: the wavefront engine (the same hits as
-#: ``per_ray``; on a 262k-triangle room at 64×48 the per-ray engine took ~7 min of shading). The runner's
-#: schema keeps ``per_ray`` for its bare default (``eval.trace_engine``); its presets all run this one.
-TRACE_ENGINE = "wavefront"
-
 # The options whose default is the runner's: option dest → where the runner keeps it (for messages).
 RUNNER_KEYS = {
     "width": "eval.width",
@@ -125,7 +120,7 @@ RUNNER_KEYS = {
     "radiance_res": "bake.radiance_res",
     "geometry_res": "bake.geometry_res",
     "bake_spp": "bake.spp",
-    "trace_engine": "eval.trace_engine of its presets",
+    "trace_engine": "eval.trace_engine",
     "hierarchy": "probes.TraceConfig.hierarchy",
 }
 
@@ -133,15 +128,15 @@ RUNNER_KEYS = {
 def runner_defaults() -> dict:
     """The default of every option of :data:`RUNNER_KEYS`, read from the runner's defaults
     (``ExperimentConfig()``: its ``bake``, ``tracer`` and ``eval`` groups; the tracer's hierarchy is the
-    library's ``TraceConfig``'s, as in a run), the trace engine :data:`TRACE_ENGINE`."""
-    from ..experiment._schema import ExperimentConfig, bake_values, eval_values
-    from ..probes._trace import TraceConfig
+    library's ``TraceConfig``'s, as in a run)."""
+    from .experiment import ExperimentConfig, bake_values, eval_values
+    from .probes import TraceConfig
 
     cfg = ExperimentConfig()
     ev, bake = eval_values(cfg), bake_values(cfg)
     out = {k: ev[k] for k in RUNNER_KEYS if k in ev}
     out |= {"radiance_res": bake["radiance_res"], "geometry_res": bake["geometry_res"]}
-    out |= {"bake_spp": cfg.bake.spp, "seed": cfg.seed, "trace_engine": TRACE_ENGINE}
+    out |= {"bake_spp": cfg.bake.spp, "seed": cfg.seed, "trace_engine": cfg.eval.trace_engine}
     out["hierarchy"] = TraceConfig().hierarchy
     return out
 
@@ -192,28 +187,12 @@ def _as_option(e: ConfigError) -> ConfigError:
     return ConfigError(f"--{name.replace('_', '-')}: {e}")
 
 
-def check_eval_memory(config, what: str) -> None:
-    """Refuse an evaluation whose reference render would not fit in memory, before anything is loaded
-    (the renderer's own estimate, ``_core._checks.check_image_memory``)."""
-    from .._core._checks import check_image_memory
-    from ..render import COMPONENTS, RenderConfig
-
-    check_image_memory(
-        config.width,
-        config.height,
-        config.spp,
-        components=len(COMPONENTS),
-        paths_per_batch=RenderConfig.paths_per_batch,
-        what=what,
-    )
-
-
 def eval_config(args: argparse.Namespace):
     """The evaluation settings: the runner's (``experiment._schema.eval_values`` of ``ExperimentConfig()``)
     with the options given over them, checked (messages name the option) and sized."""
-    from ..experiment._schema import ExperimentConfig, eval_values
-    from ..probes._trace import TraceConfig
-    from . import EvalConfig
+    from .evaluate import EvalConfig
+    from .experiment import ExperimentConfig, eval_values
+    from .probes import TraceConfig
 
     opt = resolved_options(args)
     values = eval_values(ExperimentConfig())
@@ -223,6 +202,8 @@ def eval_config(args: argparse.Namespace):
         config = EvalConfig(**values, trace=trace, seed=opt["seed"])
     except ConfigError as e:
         raise _as_option(e) from None
+    from .evaluate import check_eval_memory
+
     check_eval_memory(config, "--width × --height: the reference render")
     return config
 
@@ -230,8 +211,8 @@ def eval_config(args: argparse.Namespace):
 def bake_config(args: argparse.Namespace):
     """The bake settings: the runner's (``experiment._schema.bake_values`` of ``ExperimentConfig()``) with
     ``--radiance-res`` / ``--geometry-res`` over them, checked (messages name the option)."""
-    from ..experiment._schema import ExperimentConfig, bake_values
-    from ..probes import BakeConfig
+    from .experiment import ExperimentConfig, bake_values
+    from .probes import BakeConfig
 
     opt = resolved_options(args)
     values = bake_values(ExperimentConfig())
@@ -244,8 +225,8 @@ def bake_config(args: argparse.Namespace):
 
 def _checked_outputs(args: argparse.Namespace, path: Path, config) -> None:
     """--save-baked and --out: the right kind of input, and writable, before any work."""
-    from .._core._checks import check_writable_file, check_writable_folder
-    from ._write import evaluation_bytes
+    from ._core._checks import check_writable_file, check_writable_folder
+    from .evaluate import evaluation_bytes
 
     if args.save_baked is not None:
         if path.suffix != ".json":
@@ -259,9 +240,9 @@ def _checked_outputs(args: argparse.Namespace, path: Path, config) -> None:
 def _checked_inputs(args: argparse.Namespace):
     """Every input checked before the scene is loaded and anything is baked or rendered: (path, config,
     bake config or None, ProbeSet or baked probes)."""
-    from .._core import load_probe_set
-    from .._core._checks import check_npz_archive
-    from ..probes import load_probes
+    from ._core import load_probe_set
+    from ._core._checks import check_npz_archive
+    from .probes import load_probes
 
     path = Path(args.probes)
     if path.suffix not in (".json", ".npz"):
@@ -269,7 +250,7 @@ def _checked_inputs(args: argparse.Namespace):
     config = eval_config(args)  # first: the output's size bound needs a sensible image size
     _checked_outputs(args, path, config)
     if config.backend == "mitsuba":  # refuse before loading anything if its LLVM variant cannot load
-        from ..render._mitsuba_backend import load_mitsuba
+        from .render._mitsuba_backend import load_mitsuba
 
         try:
             load_mitsuba()
@@ -292,16 +273,16 @@ def _checked_inputs(args: argparse.Namespace):
 
 def _scene_key(name_or_path: str) -> str:
     """The name a scene loads under: a file's stem (``load_scene`` names a file scene so), else the name."""
-    from ..scene._load import _looks_like_path
+    from .scene import looks_like_path
 
-    return Path(name_or_path).stem if _looks_like_path(name_or_path) else str(name_or_path)
+    return Path(name_or_path).stem if looks_like_path(name_or_path) else str(name_or_path)
 
 
 def _check_recorded_scene(meta: dict, path: Path, scene: str) -> None:
     """Refuse a ProbeSet file that records another scene (``probeplace place`` writes ``metadata.scene``:
     the name or path it was given) than ``--scene``, compared by the name each loads under; the check a
     baked ``.npz`` gets (``probes.check_bake_settings``), before the scene is even loaded."""
-    from ..probes._bake import check_probe_scene
+    from .probes._bake import check_probe_scene
 
     record = meta.get("metadata")
     recorded = record.get("scene") if isinstance(record, dict) else None
@@ -320,9 +301,9 @@ def _check_recorded_scene(meta: dict, path: Path, scene: str) -> None:
 def _check_probes_fit(probes, path: Path, scene, args: argparse.Namespace, config, overrides, view) -> None:
     """After the scene is loaded, before any caster, bake or render: the probes lie in the scene (a baked
     file's recorded scene and depth first), the cameras are in free space, the lights reach the views."""
-    from ..probes import check_bake_settings
-    from ..probes._bake import check_probes_in_scene
-    from ._scene_checks import check_views_and_lights
+    from .evaluate import check_views_and_lights
+    from .probes import check_bake_settings
+    from .probes._bake import check_probes_in_scene
 
     if path.suffix == ".npz":
         check_bake_settings(probes, scene_name=scene.name, eval_max_depth=config.max_depth)
@@ -353,7 +334,7 @@ class _Stages:
     }
 
     def __init__(self, config) -> None:
-        from .._core import _progress
+        from ._core import _progress
 
         self.on = _progress._enabled
         self.t0 = time.perf_counter()
@@ -377,10 +358,10 @@ class _Stages:
 def run(args: argparse.Namespace) -> int:
     import jax
 
-    from ..geometry import make_caster
-    from ..probes import bake_depth_for, bake_probes, path_traced_radiance, save_probes
-    from ..scene import load_scene, scene_overrides_from_args
-    from . import evaluate, write_evaluation
+    from .evaluate import evaluate, write_evaluation
+    from .geometry import make_caster
+    from .probes import bake_depth_for, bake_probes, path_traced_radiance, save_probes
+    from .scene import load_scene, scene_overrides_from_args
 
     overrides = scene_overrides_from_args(args)  # a bad --sun/--sky/--camera fails before any work
     path, config, bake_cfg, probes = _checked_inputs(args)
