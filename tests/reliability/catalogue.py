@@ -1108,7 +1108,7 @@ CATALOGUE: list[Entry] = [
             files=_ONE_PROBE,
         ),
         ResourceError,
-        r"--width × --height: the reference render of 100000000×100000000 pixels × 64 spp needs",
+        r"--width × --height: the reference render of 100000000×100000000 pixels × 16 spp needs",
     ),
     Entry(
         "runner-image-too-large",
