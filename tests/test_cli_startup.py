@@ -1,5 +1,6 @@
-"""Commands that need no JAX start without it (issue 32 item 3): ``--version``, ``export`` (the NumPy-only
-stage, ``export --help`` too) and ``cache info`` in a fresh interpreter end with no JAX in ``sys.modules``.
+"""Commands that need no JAX start without it (issue 32 item 3): ``--version``, ``--help``, ``scenes`` (the
+listing), ``export`` (the NumPy-only stage, ``export --help`` too) and ``cache info`` in a fresh interpreter
+end with no JAX in ``sys.modules``.
 
 An invariant, not a timing: importing JAX is most of a cold start (1.5-4 s against ~0.3 s). The parser
 adds each subcommand's options on first use (``cli._Subcommand``), so only the command run loads its stage.
@@ -49,8 +50,8 @@ def probe_json(tmp_path):
 
 @pytest.mark.parametrize(
     "argv",
-    [["--version"], ["cache", "info"], ["export", "--help"], ["-q", "cache", "info"]],
-    ids=["version", "cache-info", "export-help", "quiet-cache-info"],
+    [["--version"], ["--help"], ["scenes"], ["cache", "info"], ["export", "--help"], ["-q", "cache", "info"]],
+    ids=["version", "help", "scenes", "cache-info", "export-help", "quiet-cache-info"],
 )
 def test_commands_that_need_no_jax_import_none(argv):
     rc, leaked, out = _jax_modules_after(argv)

@@ -13,7 +13,7 @@ from probeplace.scene import (
     load_scene,
     scene_search_path,
 )
-from probeplace.scene._load import _REPO_ROOT
+from probeplace.scene._search import _REPO_ROOT
 
 _TRI_OBJ = "v 0 0 0\nv {s} 0 0\nv 0 {s} 0\nf 1 2 3\n"
 

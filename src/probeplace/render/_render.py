@@ -27,6 +27,8 @@ from .._core import Camera, ConfigError, Scene, SceneError, next_pow2
 from .._core._errors import check_memory
 from .._core._progress import progress_bar
 from ..geometry import AbstractRayCaster, make_caster
+from ._backends import BACKEND_CHOICES as BACKEND_CHOICES
+from ._backends import BACKENDS as BACKENDS
 from ._camera import camera_rays
 from ._integrator import COMPONENTS, Paths, ShadeContext, add_shadowed, components, init_paths, shade
 from ._lights import light_table
@@ -35,10 +37,6 @@ from ._sampling import DIM_DIR_U, path_uniforms, seed_from_key
 log = logging.getLogger(__name__)
 
 SCHEDULES = ("compact", "fused")
-#: Who runs the path tracer: JAX (default: any device, jittable casters) or Mitsuba 3's LLVM backend (CPU).
-BACKENDS = ("jax", "mitsuba")
-#: What a config may name: a backend, or ``"auto"`` (:func:`resolve_backend`).
-BACKEND_CHOICES = ("auto", *BACKENDS)
 
 
 @functools.cache

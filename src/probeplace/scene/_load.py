@@ -20,7 +20,7 @@ from __future__ import annotations
 import dataclasses
 import logging
 import os
-from collections.abc import Mapping, Sequence
+from collections.abc import Mapping
 from pathlib import Path
 
 import numpy as np
@@ -33,102 +33,25 @@ from ._obj import load_obj
 from ._ply import load_ply
 from ._raw import RawScene, ensure_views
 from ._registry import BUILTIN_SCENES
+from ._search import SCENE_EXTENSIONS as SCENE_EXTENSIONS
+from ._search import SCENE_PATH_ENV as SCENE_PATH_ENV
+from ._search import SceneEntry as SceneEntry
+from ._search import find_scene_file as find_scene_file
+from ._search import list_scenes as list_scenes
+from ._search import looks_like_path as looks_like_path
+from ._search import scene_search_path as scene_search_path
 from ._sidecar import (
     SceneConfig,
     merge_scene_configs,
     no_light_hint,
     parse_scene_config,
     read_sidecar,
-    sidecar_path,
 )
 from ._sidecar_apply import apply_scene_config, check_layer
 
 log = logging.getLogger(__name__)
 
-#: Environment variable holding extra scene folders (``os.pathsep``-separated).
-SCENE_PATH_ENV = "PROBEPLACE_SCENE_PATH"
-#: Supported file extensions, in the order a bare name tries them.
-SCENE_EXTENSIONS = (".glb", ".gltf", ".obj", ".ply")
 _LOADERS = {".glb": load_gltf, ".gltf": load_gltf, ".obj": load_obj, ".ply": load_ply}
-# src/probeplace/scene/_load.py -> parents[3] is the checkout's root.
-_REPO_ROOT = Path(__file__).resolve().parents[3]
-
-
-@dataclasses.dataclass(frozen=True)
-class SceneEntry:
-    """One scene ``list_scenes`` found.
-
-    Attributes:
-        name: what to pass to :func:`load_scene`.
-        kind: ``"builtin"`` or ``"file"``.
-        source: the factory's module (built-ins) or the file's path.
-        sidecar: the path of the file's sidecar config if it has one (:func:`sidecar_path`), else None.
-    """
-
-    name: str
-    kind: str
-    source: str
-    sidecar: str | None = None
-
-
-def _split(value: str) -> list[Path]:
-    return [Path(p) for p in value.split(os.pathsep) if p]
-
-
-def scene_search_path(
-    search_path: str | os.PathLike | Sequence[str | os.PathLike] | None = None,
-) -> list[Path]:
-    """The folders searched for scene names, in order (see the module docstring); missing ones included."""
-    dirs: list[Path] = []
-    if isinstance(search_path, str):
-        dirs += _split(search_path)
-    elif isinstance(search_path, os.PathLike):
-        dirs.append(Path(search_path))
-    elif search_path is not None:
-        dirs += [Path(p) for p in search_path]
-    dirs += _split(os.environ.get(SCENE_PATH_ENV, ""))
-    dirs.append(Path("scenes"))
-    shared = _REPO_ROOT.parent / "shared" / "scenes"
-    if (_REPO_ROOT / "pyproject.toml").is_file() and shared.is_dir():
-        dirs.append(shared)
-    return dirs
-
-
-def find_scene_file(name: str, search_path=None) -> Path | None:
-    """First ``<dir>/<name><ext>`` on the search path, or None."""
-    for d in scene_search_path(search_path):
-        for ext in SCENE_EXTENSIONS:
-            p = d / f"{name}{ext}"
-            if p.is_file():
-                return p
-    return None
-
-
-def list_scenes(search_path=None) -> list[SceneEntry]:
-    """Built-in scenes, then every supported file on the search path (a name shadowed by an earlier
-    folder, or by an earlier extension in the same folder, is listed once: the one a name resolves to).
-    A file whose stem is a built-in's name is listed too, but loads only by path."""
-    out = [SceneEntry(n, "builtin", f.__module__) for n, f in BUILTIN_SCENES.items()]
-    seen: set[str] = set()
-    for d in scene_search_path(search_path):
-        if not d.is_dir():
-            continue
-        files = [p for p in d.iterdir() if p.is_file() and p.suffix.lower() in SCENE_EXTENSIONS]
-        files.sort(key=lambda p: (p.stem, SCENE_EXTENSIONS.index(p.suffix.lower())))
-        for p in files:
-            if p.stem not in seen:
-                seen.add(p.stem)
-                side = sidecar_path(p)
-                out.append(SceneEntry(p.stem, "file", str(p), str(side) if side.is_file() else None))
-    return out
-
-
-def looks_like_path(x: str | os.PathLike) -> bool:
-    """Whether a scene argument names a file (a path object, a separator or a suffix) rather than a
-    built-in or search-path scene name."""
-    if isinstance(x, os.PathLike):
-        return True
-    return os.sep in x or (os.altsep is not None and os.altsep in x) or Path(x).suffix != ""
 
 
 def load_scene(

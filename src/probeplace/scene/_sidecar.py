@@ -28,7 +28,7 @@ from typing import Any
 
 from .._core import ConfigError
 from . import _config_values as cv
-from ._sky import DAYLIGHT_SKY_RADIANCE, SUN_ANGULAR_RADIUS
+from ._daylight import DAYLIGHT_SKY_RADIANCE, SUN_ANGULAR_RADIUS
 
 #: Suffix that replaces a scene file's extension to name its sidecar: room.glb -> room.probeplace.yaml.
 SIDECAR_SUFFIX = ".probeplace.yaml"

@@ -13,14 +13,10 @@ import numpy as np
 
 from .._core import Sun
 from ._build import make_sun
+from ._daylight import DAYLIGHT_SKY_RADIANCE as DAYLIGHT_SKY_RADIANCE
+from ._daylight import DAYLIGHT_SUN_IRRADIANCE as DAYLIGHT_SUN_IRRADIANCE
+from ._daylight import SUN_ANGULAR_RADIUS as SUN_ANGULAR_RADIUS
 from ._primitives import Vec3Like
-
-#: Real sun's angular radius, radians (0.53° apparent diameter).
-SUN_ANGULAR_RADIUS = 0.00465
-#: Irradiance (linear RGB) from the sun on a surface facing it; warm white.
-DAYLIGHT_SUN_IRRADIANCE = (8.0, 7.5, 6.6)
-#: Constant sky radiance (linear RGB); bluish.
-DAYLIGHT_SKY_RADIANCE = (0.38, 0.46, 0.62)
 
 
 def sun_from_irradiance(
