@@ -7,13 +7,13 @@ NumPy-only ``export`` stage must not pull JAX in through this package.
 
 from __future__ import annotations
 
-import importlib
 from typing import TYPE_CHECKING
 
 from ._errors import ConfigError as ConfigError
 from ._errors import ProbeplaceError as ProbeplaceError
 from ._errors import ResourceError as ResourceError
 from ._errors import SceneError as SceneError
+from ._lazy import lazy_exports
 
 # name -> the private module defining it (all but _io and _plotting import JAX)
 _LAZY = {
@@ -112,14 +112,4 @@ if TYPE_CHECKING:  # what static checkers and IDEs see; __getattr__ gives the sa
     from ._types import Sun as Sun
     from ._types import scene_box as scene_box
 
-
-def __getattr__(name: str):
-    if name not in _LAZY:
-        raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
-    value = getattr(importlib.import_module(f".{_LAZY[name]}", __name__), name)
-    globals()[name] = value  # later lookups skip __getattr__
-    return value
-
-
-def __dir__() -> list[str]:
-    return sorted({*globals(), *__all__})
+__getattr__, __dir__ = lazy_exports(__name__, _LAZY, globals(), __all__)

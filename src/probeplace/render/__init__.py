@@ -7,9 +7,9 @@ command-line parsers that offer ``BACKEND_CHOICES`` must not.
 
 from __future__ import annotations
 
-import importlib
 from typing import TYPE_CHECKING
 
+from .._core._lazy import lazy_exports
 from ._backends import BACKEND_CHOICES as BACKEND_CHOICES
 from ._backends import BACKENDS as BACKENDS
 
@@ -107,14 +107,4 @@ if TYPE_CHECKING:  # what static checkers and IDEs see; __getattr__ gives the sa
     from ._sampling import to_local as to_local
     from ._sampling import to_world as to_world
 
-
-def __getattr__(name: str):
-    if name not in _LAZY:
-        raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
-    value = getattr(importlib.import_module(f".{_LAZY[name]}", __name__), name)
-    globals()[name] = value  # later lookups skip __getattr__
-    return value
-
-
-def __dir__() -> list[str]:
-    return sorted({*globals(), *__all__})
+__getattr__, __dir__ = lazy_exports(__name__, _LAZY, globals(), __all__)

@@ -7,9 +7,9 @@ the daylight constants, the CLI scene options) load eagerly; the rest loads on f
 
 from __future__ import annotations
 
-import importlib
 from typing import TYPE_CHECKING
 
+from .._core._lazy import lazy_exports
 from ._daylight import DAYLIGHT_SKY_RADIANCE as DAYLIGHT_SKY_RADIANCE
 from ._daylight import DAYLIGHT_SUN_IRRADIANCE as DAYLIGHT_SUN_IRRADIANCE
 from ._known import KNOWN_SCENES as KNOWN_SCENES
@@ -110,14 +110,4 @@ if TYPE_CHECKING:  # what static checkers and IDEs see; __getattr__ gives the sa
     from ._transform import axis_angle_rotation as axis_angle_rotation
     from ._transform import transform_scene as transform_scene
 
-
-def __getattr__(name: str):
-    if name not in _LAZY:
-        raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
-    value = getattr(importlib.import_module(f".{_LAZY[name]}", __name__), name)
-    globals()[name] = value  # later lookups skip __getattr__
-    return value
-
-
-def __dir__() -> list[str]:
-    return sorted({*globals(), *__all__})
+__getattr__, __dir__ = lazy_exports(__name__, _LAZY, globals(), __all__)
