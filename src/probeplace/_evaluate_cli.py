@@ -168,21 +168,15 @@ def resolved_options(args: argparse.Namespace) -> dict:
     return {k: v if given[k] is None else given[k] for k, v in runner_defaults().items()}
 
 
-# EvalConfig / BakeConfig / TraceConfig fields set from an option of the same name: their messages name
-# the option.
-_OPTIONS = (
-    *("width", "height", "spp", "glossy_spp", "glossy_ref_spp", "max_depth", "shading", "seed"),
-    *("timing_repeats", "backend", "radiance_res", "geometry_res", "hierarchy"),
-)
-
-
 def _as_option(e: ConfigError) -> ConfigError:
-    """``EvalConfig.width must be ...`` as ``--width: EvalConfig.width must be ...`` (the option first)."""
+    """``EvalConfig.width must be ...`` as ``--width: EvalConfig.width must be ...`` (the option first):
+    an EvalConfig / BakeConfig / TraceConfig field set from the option of the same name (RUNNER_KEYS;
+    ``TraceConfig.engine`` is ``--trace-engine``)."""
     m = re.match(r"(EvalConfig|BakeConfig|TraceConfig)\.(\w+)", str(e))
     if m is None:
         return e
     name = "trace_engine" if m.group(1, 2) == ("TraceConfig", "engine") else m.group(2)
-    if name not in (*_OPTIONS, "trace_engine"):
+    if name not in RUNNER_KEYS:
         return e
     return ConfigError(f"--{name.replace('_', '-')}: {e}")
 

@@ -64,6 +64,9 @@ def test_scenes_v_prints_the_resolved_sidecar(tmp_path, capsys):
     np.testing.assert_allclose(irradiance, [8, 7, 6], rtol=1e-5)
     assert "angular diameter 0.53" in sun  # the real sun's size, the default
 
+    # The sky, emitter and camera values below are the sidecar's decimals stored as float32 (≤ 6e-8
+    # relative) and printed to 6 significant digits, which round them back; no arithmetic touches them, so
+    # no instruction set can move them: 1e-6 is the print's own precision.
     np.testing.assert_allclose(_vectors(out["sky"][0])[0], [0.1, 0.2, 0.3], rtol=1e-6)
     (lamp,) = out["emitter"]
     assert lamp.startswith("lamp: ") and lamp.endswith(", 12 triangles")

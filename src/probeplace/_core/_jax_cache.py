@@ -182,27 +182,33 @@ def prepare(state: CacheState) -> CacheState:
     return state
 
 
+def _env_text(value: bool | float | int | str) -> str:
+    """A setting as its environment variable spells it: ``true``/``false``, ``0`` for 0.0, ``-1``."""
+    if isinstance(value, bool):
+        return "true" if value else "false"
+    return f"{value:g}" if isinstance(value, float) else str(value)
+
+
 def _apply(folder: Path | None) -> None:
-    values = {
-        "JAX_ENABLE_COMPILATION_CACHE": "true" if folder is not None else "false",
-        "JAX_COMPILATION_CACHE_DIR": str(folder) if folder is not None else None,
-        "JAX_PERSISTENT_CACHE_MIN_COMPILE_TIME_SECS": "0",
-        "JAX_PERSISTENT_CACHE_MIN_ENTRY_SIZE_BYTES": "-1",
+    settings = {  # jax.config name -> value; each is also set as its environment variable (_JAX_ENV)
+        "jax_enable_compilation_cache": folder is not None,
+        "jax_compilation_cache_dir": str(folder) if folder is not None else None,
+        "jax_persistent_cache_min_compile_time_secs": 0.0,
+        "jax_persistent_cache_min_entry_size_bytes": -1,
     }
-    for name, value in values.items():
+    for env, name in _JAX_ENV.items():
+        value = settings[name]
         if value is None:
-            os.environ.pop(name, None)
+            os.environ.pop(env, None)
         else:
-            os.environ[name] = value
+            os.environ[env] = _env_text(value)
     if "jax" not in sys.modules:  # JAX reads the variables when it is imported
         return
     import jax
     from jax.experimental.compilation_cache import compilation_cache
 
-    jax.config.update("jax_enable_compilation_cache", folder is not None)
-    jax.config.update("jax_compilation_cache_dir", str(folder) if folder is not None else None)
-    jax.config.update("jax_persistent_cache_min_compile_time_secs", 0.0)
-    jax.config.update("jax_persistent_cache_min_entry_size_bytes", -1)
+    for name, value in settings.items():
+        jax.config.update(name, value)
     compilation_cache.reset_cache()  # forget a folder (or "no folder") an earlier compile settled on
 
 

@@ -193,7 +193,7 @@ def unresolved(r: dict) -> float | None:
 def full_coverage(r: dict) -> bool | None:
     """Whether the run's coverage is full by ``placement.reaches_target`` (the tolerance of
     ``target_reached``); None when the run has no coverage."""
-    from ..placement._auto import reaches_target
+    from ..placement import reaches_target
 
     c = _num(r.get("coverage"))
     return None if c is None else reaches_target(c)

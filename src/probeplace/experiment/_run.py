@@ -552,13 +552,19 @@ def _config_differences(cfg: ExperimentConfig, final: Path) -> list[str]:
     )
 
 
+def _config_refusal(cfg: ExperimentConfig, final: Path) -> str | None:
+    """Why the finished run ``final`` ran with another config (one line naming the keys), or None."""
+    diff = _config_differences(cfg, final)
+    if not diff:
+        return None
+    return f"{final} is a finished run with a different config ({', '.join(diff)} differ); {_WAYS_OUT}"
+
+
 def _check_same_config(cfg: ExperimentConfig, final: Path) -> None:
     """Refuse a finished run that ran with another config, naming the keys."""
-    diff = _config_differences(cfg, final)
-    if diff:
-        raise ConfigError(
-            f"{final} is a finished run with a different config ({', '.join(diff)} differ); {_WAYS_OUT}"
-        )
+    why = _config_refusal(cfg, final)
+    if why is not None:
+        raise ConfigError(why)
 
 
 def _short(v) -> str:
@@ -587,9 +593,9 @@ def finished_run_differences(cfg: ExperimentConfig, inputs: dict, final: Path) -
     """Why the finished run ``final`` is not this run (one line), or None when it is: its config
     (``config.yaml``) or its inputs (``inputs.json``: ``run_inputs``) differ, or its inputs were not
     recorded (a run written before they were)."""
-    diff = _config_differences(cfg, final)
-    if diff:
-        return f"{final} is a finished run with a different config ({', '.join(diff)} differ); {_WAYS_OUT}"
+    why = _config_refusal(cfg, final)
+    if why is not None:
+        return why
     recorded = final / "inputs.json"
     if not recorded.is_file():
         return (
@@ -670,7 +676,7 @@ def failures(m: dict) -> list[str]:
     tolerance of ``target_reached``), probes inside geometry (negative SDF or the bake's inside test),
     optimiser not converged, an evaluated error that is not finite or, per indirect component, above a
     black image's (each only when the run measured it). Unresolved rays are a share, not a failure."""
-    from ..placement._auto import reaches_target
+    from ..placement import reaches_target
 
     out = []
     if m.get("coverage") is not None and not reaches_target(m["coverage"]):

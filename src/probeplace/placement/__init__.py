@@ -3,6 +3,7 @@ automatic budget, and ``place``. See docs/placement.md."""
 
 from ._auto import AutoResult as AutoResult
 from ._auto import auto_budget as auto_budget
+from ._auto import reaches_target as reaches_target
 from ._binary import binary_coverage as binary_coverage
 from ._binary import binary_visibility as binary_visibility
 from ._binary import wang_fitness_binary as wang_fitness_binary
