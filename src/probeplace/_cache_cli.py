@@ -18,6 +18,12 @@ def add_parser(parser: argparse.ArgumentParser, sub) -> None:
         f"later runs; 'off' compiles everything anew (default: ${_jax_cache.ENV}, else "
         f"$XDG_CACHE_HOME/probeplace or ~/.cache/probeplace; see `probeplace cache info`)",
     )
+    parser.add_argument(
+        "--explain-compiles",
+        action="store_true",
+        help=f"debugging: log every XLA compilation and why no compiled program was reused (which "
+        f"argument's shape, dtype or setting changed); also ${_jax_cache.EXPLAIN_ENV}=1",
+    )
     c = sub.add_parser(
         "cache",
         help="the JAX compilation cache: `cache info` (folder, entries, size), `cache clear` (delete it)",
@@ -34,6 +40,8 @@ def add_parser(parser: argparse.ArgumentParser, sub) -> None:
 def enable_from_args(args: argparse.Namespace) -> _jax_cache.CacheState:
     """The cache as the command asks (``--jax-cache``, else ``$PROBEPLACE_JAX_CACHE``, else the default);
     call before the first compilation."""
+    if getattr(args, "explain_compiles", False):
+        _jax_cache.explain_compiles(True)
     return _jax_cache.enable_compilation_cache(getattr(args, "jax_cache", None))
 
 

@@ -354,7 +354,7 @@ def run(args: argparse.Namespace) -> int:
 
     from .evaluate import evaluate, write_evaluation
     from .geometry import make_caster
-    from .probes import bake_depth_for, bake_probes, path_traced_radiance, save_probes
+    from .probes import bake_depth_for, bake_probes, pad_probes, path_traced_radiance, save_probes
     from .scene import load_scene, scene_overrides_from_args
 
     overrides = scene_overrides_from_args(args)  # a bad --sun/--sky/--camera fails before any work
@@ -382,7 +382,7 @@ def run(args: argparse.Namespace) -> int:
         say(f"bake: {n} probes, {res}² radiance maps, {opt['bake_spp']} paths per texel ray ({backend})")
         lf = bake_probes(
             scene,
-            probes,
+            pad_probes(probes),  # as the runner (bake.pad_pow2): a few probe counts, compiled once each
             caster=caster,
             radiance_fn=path_traced_radiance(
                 scene,

@@ -38,6 +38,8 @@ from dataclasses import dataclass
 from pathlib import Path
 
 ENV = "PROBEPLACE_JAX_CACHE"
+#: Set (to anything but an off word) to log every compilation and why JAX's caches missed (debugging).
+EXPLAIN_ENV = "PROBEPLACE_EXPLAIN_COMPILES"
 OFF_WORDS = frozenset({"off", "0", "no", "none", "false", "disable", "disabled"})
 
 #: JAX's environment variables (read when ``jax`` is imported) and the matching ``jax.config`` names.
@@ -212,6 +214,27 @@ def _apply(folder: Path | None) -> None:
     compilation_cache.reset_cache()  # forget a folder (or "no folder") an earlier compile settled on
 
 
+def explain_compiles(on: bool | None = None) -> bool:
+    """Log each compilation (``jax_log_compiles``: the function, its shapes, the time) and why it was not
+    reused (``jax_explain_cache_misses``: which argument's shape, dtype or static value changed), at
+    WARNING level. ``on`` None reads ``$PROBEPLACE_EXPLAIN_COMPILES``; True also sets it for child
+    processes. Like the cache settings, the environment variables JAX reads at import, plus ``jax.config``
+    when JAX is already imported. Returns whether it is on."""
+    if on is None:
+        on = os.environ.get(EXPLAIN_ENV, "").strip().lower() not in ("", *OFF_WORDS)
+    elif on:
+        os.environ[EXPLAIN_ENV] = "1"
+    if not on:
+        return False
+    os.environ["JAX_LOG_COMPILES"] = os.environ["JAX_EXPLAIN_CACHE_MISSES"] = "true"
+    if "jax" in sys.modules:
+        import jax
+
+        jax.config.update("jax_log_compiles", True)
+        jax.config.update("jax_explain_cache_misses", True)
+    return True
+
+
 def enable_compilation_cache(setting: str | None = None) -> CacheState:
     """Turn the persistent compilation cache on (or off) for this process and the processes it starts.
 
@@ -225,6 +248,7 @@ def enable_compilation_cache(setting: str | None = None) -> CacheState:
     if state.refused is not None:
         log.warning("not using the JAX compilation cache: %s", state.refused)
     _apply(state.folder)
+    explain_compiles()  # $PROBEPLACE_EXPLAIN_COMPILES: every front door that sets up the cache honours it
     _state = state
     return state
 

@@ -20,6 +20,8 @@ Conventions (used by baking, the light-field tracer and export alike):
 
 from __future__ import annotations
 
+from functools import partial
+
 import jax
 import jax.numpy as jnp
 from jaxtyping import Array, Float, Int
@@ -31,6 +33,7 @@ def _sign_not_zero(x: Array) -> Array:
     return jnp.where(x >= 0, jnp.ones_like(x), -jnp.ones_like(x))
 
 
+@jax.jit  # host callers (index building) get one program per shape, not one per operation
 def oct_encode(direction: Float[Array, "... 3"]) -> Float[Array, "... 2"]:
     """Unit direction(s) → octahedral ``uv`` ∈ [−1, 1]² (Cigolle 2014, Listing 6 ``float32x3_to_oct``).
 
@@ -53,6 +56,7 @@ def _octahedron_point(uv: Float[Array, "... 2"]) -> Float[Array, "... 3"]:
     return jnp.stack([x, y, z], axis=-1)
 
 
+@jax.jit
 def oct_decode(uv: Float[Array, "... 2"]) -> Float[Array, "... 3"]:
     """Octahedral ``uv`` ∈ [−1, 1]² → unit direction (Cigolle 2014, Listing 6 ``oct_to_float32x3``)."""
     return safe_normalize(_octahedron_point(uv))
@@ -71,6 +75,9 @@ def oct_wrap(uv: Float[Array, "... 2"]) -> Float[Array, "... 2"]:
     return jnp.stack([u, v], axis=-1)
 
 
+# The map builders below are jitted with their sizes static: called eagerly (bake, tracer set-up) each is one
+# compiled program per size instead of one per jnp operation inside it; under an outer jit they inline.
+@partial(jax.jit, static_argnames=("res", "dtype"))
 def texel_uv(res: int, dtype=jnp.float32) -> Float[Array, "res res 2"]:
     """Centres of the R×R interior texels in ``uv`` (``[..., 0]`` = u along columns, ``[..., 1]`` = v)."""
     c = (jnp.arange(res, dtype=dtype) + 0.5) * (2.0 / res) - 1.0
@@ -78,11 +85,13 @@ def texel_uv(res: int, dtype=jnp.float32) -> Float[Array, "res res 2"]:
     return jnp.stack([uu, vv], axis=-1)
 
 
+@partial(jax.jit, static_argnames=("res", "dtype"))
 def texel_directions(res: int, dtype=jnp.float32) -> Float[Array, "res res 3"]:
     """Unit direction through the centre of each interior texel."""
     return oct_decode(texel_uv(res, dtype))
 
 
+@partial(jax.jit, static_argnames=("res", "dtype", "sub"))
 def texel_solid_angles(res: int, dtype=jnp.float32, sub: int = 4) -> Float[Array, "res res"]:
     """Solid angle of each interior texel, steradians (sums to 4π).
 
@@ -94,6 +103,7 @@ def texel_solid_angles(res: int, dtype=jnp.float32, sub: int = 4) -> Float[Array
     return w.reshape(res, sub, res, sub).sum(axis=(1, 3))
 
 
+@partial(jax.jit, static_argnames=("res",))
 def border_index(res: int) -> tuple[Int[Array, "rb rb"], Int[Array, "rb rb"]]:
     """For each texel of the (R+2)×(R+2) bordered map, the (row, col) of the *interior* texel it holds.
 
@@ -107,6 +117,7 @@ def border_index(res: int) -> tuple[Int[Array, "rb rb"], Int[Array, "rb rb"]]:
     return to_idx(w[..., 1]), to_idx(w[..., 0])
 
 
+@jax.jit
 def add_border(interior: Float[Array, "... res res c"]) -> Float[Array, "... rb rb c"]:
     """Pad R×R interior maps (leading batch axes allowed, channel axis last) to (R+2)×(R+2)."""
     res = interior.shape[-2]
@@ -155,6 +166,7 @@ def texel_of_direction(res: int, direction: Float[Array, "3"]) -> Int[Array, "2"
     return idx[::-1]
 
 
+@partial(jax.jit, static_argnames=("res", "n_sub", "dtype"))
 def jittered_texel_directions(
     res: int, n_sub: int, *, key: jax.Array, dtype=jnp.float32
 ) -> Float[Array, "res res n_sub_sq 3"]:

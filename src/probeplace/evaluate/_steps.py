@@ -11,6 +11,7 @@ from __future__ import annotations
 import dataclasses
 import statistics
 import time
+from functools import partial
 
 import equinox as eqx
 import jax
@@ -186,6 +187,18 @@ def _sample_one(mats, specular, offset_len, o, d, t, tri, ng, ns, mat, u1):
 _pixel_uniforms = jax.jit(jax.vmap(path_uniforms, in_axes=(None, 0, 0, None)), static_argnums=3)
 
 
+@partial(jax.jit, static_argnums=(2, 3, 4))  # one program, not one per operation (issue 32)
+def _primary_rays(camera, seed_u, W: int, H: int, S: int):
+    """Camera rays of every (pixel, sample) with the reference's jitter (bounce-0 uniforms 1–2) and the
+    bounce-1 uniforms, pixel-major."""
+    pix = jnp.repeat(jnp.arange(W * H, dtype=jnp.int32), S)
+    smp = jnp.tile(jnp.arange(S, dtype=jnp.int32), W * H)
+    u0 = _pixel_uniforms(seed_u, pix, smp, 0)
+    u1 = _pixel_uniforms(seed_u, pix, smp, 1)
+    o, d = camera_rays(camera, W, H, pix, u0[:, 1:3])
+    return o, d, u1
+
+
 @eqx.filter_jit
 def _samples(mats, specular, offset_len, o, d, hit, u1) -> _Samples:
     out = jax.vmap(_sample_one, in_axes=(None, None, None, 0, 0, 0, 0, 0, 0, 0, 0))(
@@ -199,12 +212,7 @@ def sample_primary(scene: Scene, camera: Camera, config: EvalConfig, *, seed: in
     numbers): for pixel sample s, ``path_uniforms(seed, pixel, s, 0 | 1)``; one GGX visible-normal
     direction and one cosine direction (for the diffuse albedo) per sample."""
     W, H, S = config.width, config.height, config.glossy_spp
-    seed_u = jnp.asarray(seed, jnp.uint32)
-    pix = jnp.repeat(jnp.arange(W * H, dtype=jnp.int32), S)
-    smp = jnp.tile(jnp.arange(S, dtype=jnp.int32), W * H)
-    u0 = _pixel_uniforms(seed_u, pix, smp, 0)
-    u1 = _pixel_uniforms(seed_u, pix, smp, 1)
-    o, d = camera_rays(camera, W, H, pix, u0[:, 1:3])
+    o, d, u1 = _primary_rays(camera, jnp.asarray(seed, jnp.uint32), W, H, S)
     hit = caster.closest_hit(o, d)
     lo, hi = scene_box(scene)
     offset_len = jnp.asarray(1e-4 * float(np.linalg.norm(hi - lo)), jnp.float32)

@@ -484,7 +484,7 @@ def _bake_stage(cfg: ExperimentConfig, scene, probes, key, partial: Path, timing
     settings and memory; returns the baked probes and the exact caster (the evaluation's too)."""
     import jax
 
-    from ..probes import bake_depth_for, bake_probes, path_traced_radiance, save_probes
+    from ..probes import bake_depth_for, bake_probes, pad_probes, path_traced_radiance, save_probes
     from ..render import default_caster, resolve_backend
 
     caster = default_caster(scene)
@@ -493,7 +493,7 @@ def _bake_stage(cfg: ExperimentConfig, scene, probes, key, partial: Path, timing
     with _timed(timings, "bake", drjit=mitsuba):
         lf = bake_probes(
             scene,
-            _padded(probes) if cfg.bake.pad_pow2 else probes,
+            pad_probes(probes) if cfg.bake.pad_pow2 else probes,
             caster=caster,  # texel-centre geometry rays and the inside test, whatever the backend
             # one depth rule for bake, reference and evaluation: a texel replaces the rest of a camera path
             radiance_fn=path_traced_radiance(
@@ -634,25 +634,6 @@ def _inside_sdf(scene, pos: np.ndarray) -> int:
     if not len(pos):
         return 0
     return int((lookup_sdf(build_sdf(scene), pos) < 0).sum())
-
-
-def _padded(probes):
-    """``probes`` with inactive rows (copies of the first probe) up to a capacity from a few buckets:
-    a power of two from 8 to 64, then a multiple of 64."""
-    import jax.numpy as jnp
-
-    from .._core import ProbeSet, next_pow2
-
-    n = probes.capacity
-    cap = next_pow2(n, lo=8) if n <= 64 else -(-n // 64) * 64
-    pad = cap - probes.capacity
-    if pad <= 0:
-        return probes
-    return ProbeSet(
-        pos_world=jnp.concatenate([probes.pos_world, jnp.repeat(probes.pos_world[:1], pad, axis=0)]),
-        active=jnp.concatenate([probes.active, jnp.zeros(pad, bool)]),
-        method=probes.method,
-    )
 
 
 def _flat(d: dict, prefix: str = "") -> dict:

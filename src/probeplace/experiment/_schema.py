@@ -128,8 +128,9 @@ BakeStage = _stage_schema(
         enabled: bake at all (the stability study only needs placements).
         spp: paths per bake ray (``probes.path_traced_radiance``; checked as ``render.RenderConfig.spp``).
         pad_pow2: pad the baked set with inactive probes to a power-of-two capacity (8 to 64; beyond, a
-            multiple of 64), so the runs of a sweep share compiled bake / shading code; inactive probes are
-            masked out, the results do not change.
+            multiple of 64: ``probes.pad_probes``), so the runs of a sweep share compiled bake / shading
+            code; inactive probes are masked out, the results do not change. ``probeplace evaluate``
+            always pads.
         backend: who path-traces the bake's radiance: ``"jax"`` (default) or ``"mitsuba"`` (Mitsuba 3's
             ``llvm_ad_rgb`` variant; ``probes.path_traced_radiance(backend=...)``), or ``"auto"``
             (``render.resolve_backend``: Mitsuba on a CPU where it loads, else JAX). A run refuses

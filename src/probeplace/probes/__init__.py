@@ -10,6 +10,8 @@ from ._bake import bake_depth_for as bake_depth_for
 from ._bake import bake_probes as bake_probes
 from ._bake import check_bake_settings as check_bake_settings
 from ._bake import default_radiance_res as default_radiance_res
+from ._bake import pad_probes as pad_probes
+from ._bake import padded_capacity as padded_capacity
 from ._bake import path_traced_radiance as path_traced_radiance
 from ._bake import probe_bytes as probe_bytes
 from ._filter import distance_moments as distance_moments

@@ -66,6 +66,7 @@ from .._core import (
     SceneError,
     add_border,
     jittered_texel_directions,
+    next_pow2,
     scene_box,
     texel_directions,
 )
@@ -134,12 +135,16 @@ class PathTracedRadiance:
             caster=self.caster,
             backend=self.backend,
         )
-        emitted = r.component("emission")
-        every_lobe = r.component("full") - emitted
+        # on the host: the bake reads the result back anyway, and eager jnp arithmetic would compile a
+        # program per operation and ray count (issue 32)
+        mean = np.asarray(r.mean)
+        c = lambda name: mean[:, r.components.index(name)]
+        emitted = c("emission")
+        every_lobe = c("full") - emitted
         if self.first_hit_lobes == "all":
             return every_lobe, emitted
         # the diffuse lobe's share of what the surface reflects (render._integrator: "glossy_direct")
-        diffuse_lobe = r.component("direct") - r.component("glossy_direct") + r.component("diffuse_indirect")
+        diffuse_lobe = c("direct") - c("glossy_direct") + c("diffuse_indirect")
         return diffuse_lobe, emitted, every_lobe
 
 
@@ -421,6 +426,27 @@ def _bake_batch(
     radiance, emission = per_texel(out[0]), per_texel(out[1])
     every_lobe = per_texel(out[2]) if len(out) > 2 else radiance  # :data:`RadianceFn`
     return radiance, emission, every_lobe, normal, distance, backface
+
+
+def padded_capacity(n: int) -> int:
+    """The capacity a set of ``n`` probes is padded to before a bake (:func:`pad_probes`): a power of two
+    from 8 to 64, then a multiple of 64. Bake, tracer and shading programs are compiled per probe count;
+    with a few capacities a new budget, seed or method reuses them (issue 32)."""
+    return next_pow2(n, lo=8) if n <= 64 else -(-n // 64) * 64
+
+
+def pad_probes(probes: ProbeSet) -> ProbeSet:
+    """``probes`` with inactive rows (copies of the first probe) up to :func:`padded_capacity`. Inactive
+    probes are masked out of the bake, the tracer and the shading: the results do not change, but the
+    stored set has the padded rows (``active`` False)."""
+    pad = padded_capacity(probes.capacity) - probes.capacity
+    if pad <= 0:
+        return probes
+    return ProbeSet(
+        pos_world=jnp.concatenate([probes.pos_world, jnp.repeat(probes.pos_world[:1], pad, axis=0)]),
+        active=jnp.concatenate([probes.active, jnp.zeros(pad, bool)]),
+        method=probes.method,
+    )
 
 
 def bake_probes(

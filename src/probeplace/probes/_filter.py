@@ -16,6 +16,9 @@ approximations of unknown bias.
 
 from __future__ import annotations
 
+from functools import partial
+
+import jax
 import jax.numpy as jnp
 from jaxtyping import Array, Float
 
@@ -33,6 +36,8 @@ def _lobe_matrix(src_res: int, dst_res: int, power: float | None, dtype) -> Floa
     return cos * d_omega[None, :]
 
 
+# Jitted with the sizes static: one compiled program per map size instead of one per jnp operation (issue 32).
+@partial(jax.jit, static_argnames=("res",))
 def irradiance_map(radiance: Float[Array, "p r r 3"], res: int) -> Float[Array, "p res res 3"]:
     """Cosine-convolved irradiance for receiver normals on a ``res``² map, from interior radiance maps."""
     p, r = radiance.shape[0], radiance.shape[1]
@@ -41,6 +46,7 @@ def irradiance_map(radiance: Float[Array, "p r r 3"], res: int) -> Float[Array, 
     return e.reshape(p, res, res, 3)
 
 
+@partial(jax.jit, static_argnames=("res", "power"))
 def distance_moments(distance: Float[Array, "p r r"], res: int, power: float) -> Float[Array, "p res res 2"]:
     """(E[r], E[r²]) under the normalised lobe max(0, n·ω)^power, for normals on a ``res``² map."""
     p, r = distance.shape[0], distance.shape[1]
@@ -52,6 +58,7 @@ def distance_moments(distance: Float[Array, "p r r"], res: int, power: float) ->
     return jnp.stack([m1, m2], axis=-1).reshape(p, res, res, 2)
 
 
+@jax.jit
 def mip_chains(
     distance: Float[Array, "p r r"],
 ) -> tuple[tuple[Float[Array, "p _ _"], ...], tuple[Float[Array, "p _ _"], ...]]:

@@ -49,6 +49,7 @@ continuous across the fold at every level.
 from __future__ import annotations
 
 import math
+from functools import partial
 
 import equinox as eqx
 import jax
@@ -147,17 +148,18 @@ def _nearest(maps: Array, p: Int[Array, ""], direction: Float[Array, "3"]) -> Ar
     return maps[p, rc[0] + 1, rc[1] + 1]
 
 
-def _surfel_maps(lf: LightFieldProbes, res: int) -> tuple[Array, Array]:
+@partial(jax.jit, static_argnames=("res",))  # one program, not one per operation (issue 32)
+def _surfel_maps(distance: Array, normal: Array, res: int) -> tuple[Array, Array]:
     """Bordered (p, res+2, res+2, 3) maps of each radiance texel's surfel: the point d·ω_c relative to the
-    probe and the normal, from the geometry texel containing the radiance texel's centre direction (the
-    geometry maps may be finer)."""
-    gres = lf.distance.shape[-1] - 2
-    dirs = texel_directions(res, lf.distance.dtype).reshape(-1, 3)
+    probe and the normal, from the geometry texel (bordered ``distance`` and ``normal`` maps of a bake)
+    containing the radiance texel's centre direction (the geometry maps may be finer)."""
+    gres = distance.shape[-1] - 2
+    dirs = texel_directions(res, distance.dtype).reshape(-1, 3)
     rc = jax.vmap(lambda w: texel_of_direction(gres, w))(dirs)
-    omega = texel_directions(gres, lf.distance.dtype)[rc[:, 0], rc[:, 1]]
-    dist = lf.distance[:, rc[:, 0] + 1, rc[:, 1] + 1]
+    omega = texel_directions(gres, distance.dtype)[rc[:, 0], rc[:, 1]]
+    dist = distance[:, rc[:, 0] + 1, rc[:, 1] + 1]
     point = (dist[..., None] * omega[None]).reshape(-1, res, res, 3)
-    normal = lf.normal[:, rc[:, 0] + 1, rc[:, 1] + 1].reshape(-1, res, res, 3)
+    normal = normal[:, rc[:, 0] + 1, rc[:, 1] + 1].reshape(-1, res, res, 3)
     return add_border(point), add_border(normal)
 
 
@@ -327,7 +329,7 @@ def glossy_maps(
         return radiance_mips(lf, include_emission=include_emission)
     level0 = lf.radiance + lf.emission if include_emission else lf.radiance
     if filter == "depth_aware":
-        return (level0, *_surfel_maps(lf, level0.shape[-2] - 2))
+        return (level0, *_surfel_maps(lf.distance, lf.normal, level0.shape[-2] - 2))
     return (level0,)
 
 

@@ -60,6 +60,7 @@ from __future__ import annotations
 
 import dataclasses
 import math
+from functools import partial
 from typing import NamedTuple
 
 import equinox as eqx
@@ -283,13 +284,14 @@ class TraceResult(eqx.Module):
 
 
 # --------------------------------------------------------------------------------------------- building
-def _geometry_maps(lf: LightFieldProbes):
-    """Bordered (R+2)² geometry maps of all probes: surfel points, normals turned toward the probe,
-    has-surface flags, and the sample directions (border texels: their source texel's direction)."""
-    res = lf.distance.shape[-1] - 2
-    far = jnp.asarray(lf.far, jnp.float32)
-    dist = jnp.asarray(lf.distance, jnp.float32)
-    nrm = jnp.asarray(lf.normal, jnp.float32)
+def _geometry_maps(distance, normal, far):
+    """Bordered (R+2)² geometry maps of all probes (a bake's ``distance``, ``normal``, ``far``): surfel
+    points, normals turned toward the probe, has-surface flags, and the sample directions (border texels:
+    their source texel's direction)."""
+    res = distance.shape[-1] - 2
+    far = jnp.asarray(far, jnp.float32)
+    dist = jnp.asarray(distance, jnp.float32)
+    nrm = jnp.asarray(normal, jnp.float32)
     omega = add_border(texel_directions(res, jnp.float32))
     has = (dist < 0.999 * far) & (jnp.sum(nrm * nrm, axis=-1) > 0.25)
     facing = jnp.sum(nrm * omega[None], axis=-1)
@@ -310,6 +312,17 @@ def _mip_flat(level: Float[Array, "p m m"], how: str) -> Float[Array, "p k"]:
         level = level.min(axis=(2, 4)) if how == "min" else level.max(axis=(2, 4))
         levels.append(level.reshape(p, -1))
     return jnp.concatenate(levels, axis=1)
+
+
+@partial(jax.jit, static_argnames=("sub", "tol", "thickness"))
+def _tracer_maps(distance, normal, far, *, sub: int, tol: float, thickness: float):
+    """The tracer's per-probe arrays from the baked maps, as one compiled program (issue 32: eagerly, the
+    set-up was ~200 small programs): bordered surfel points, normals and has-surface flags, the ambiguous
+    cells, and the flattened min-MIP of the cells' lower bounds and max-MIP of their upper bounds."""
+    xb, nb, hb, wb = _geometry_maps(distance, normal, far)
+    big = 4.0 * jnp.asarray(far, jnp.float32)
+    lower, upper, ambiguous = all_probe_cells(xb, nb, hb, wb, sub=sub, tol=tol, thickness=thickness, big=big)
+    return xb, nb, hb, ambiguous, _mip_flat(lower, "min"), _mip_flat(upper, "max")
 
 
 def _spacing(pos: np.ndarray) -> float:
@@ -349,31 +362,23 @@ def make_tracer(
         raise ConfigError(f"the tracer needs power-of-two distance maps, got resolution {res}")
     if lf.normal.shape[-2] - 2 != res:
         raise ConfigError(f"the normal map ({lf.normal.shape[-2] - 2}²) must match the distance map ({res}²)")
-    b = jnp.asarray(bounds, jnp.float32)
+    bn = np.asarray(bounds, np.float32)  # checked on the host: no compiled program for a check
     pos = np.asarray(lf.pos_world, np.float32)
     if not np.isfinite(pos).all():
         raise ConfigError(f"probe positions must be finite; {int((~np.isfinite(pos)).any(-1).sum())} are not")
-    if b.shape != (2, 3) or not bool(jnp.all(jnp.isfinite(b))) or not bool(jnp.all(b[1] >= b[0])):
-        raise ConfigError(f"bounds must be finite (min, max) corners of shape (2, 3), got {np.asarray(b)}")
+    if bn.shape != (2, 3) or not np.isfinite(bn).all() or not (bn[1] >= bn[0]).all():
+        raise ConfigError(f"bounds must be finite (min, max) corners of shape (2, 3), got {bn}")
+    b = jnp.asarray(bn)
     # Inactive rows (e.g. padding to a fixed size so compiled code is reused) are not probes: skip them.
-    _warn_probe_layout(pos[np.asarray(lf.active)], np.asarray(b[0]), np.asarray(b[1]), "make_tracer")
+    _warn_probe_layout(pos[np.asarray(lf.active)], bn[0], bn[1], "make_tracer")
     if index is None:
         try:
             index = grid_index(lf)
         except ConfigError:
             index = voxel_index(lf, b)
     far = jnp.asarray(lf.far, jnp.float32)
-    xb, nb, hb, wb = _geometry_maps(lf)
-    big = float(4.0 * far)
-    lower, upper, ambiguous = all_probe_cells(
-        xb,
-        nb,
-        hb,
-        wb,
-        sub=config.subdivide,
-        tol=config.edge_tol,
-        thickness=config.thickness,
-        big=big,
+    xb, nb, hb, ambiguous, bound_flat, upper_flat = _tracer_maps(
+        lf.distance, lf.normal, lf.far, sub=config.subdivide, tol=config.edge_tol, thickness=config.thickness
     )
     margin = config.bounds_margin * jnp.max(b[1] - b[0])
     usable = np.asarray(lf.active) & ~np.asarray(lf.inside)
@@ -385,8 +390,8 @@ def make_tracer(
         surfel_n=nb,
         has_surface=hb,
         ambiguous=ambiguous,
-        bound_flat=_mip_flat(lower, "min"),
-        upper_flat=_mip_flat(upper, "max"),
+        bound_flat=bound_flat,
+        upper_flat=upper_flat,
         spacing=jnp.asarray(spacing, jnp.float32),
         far=far,
         t_far=jnp.linalg.norm(b[1] - b[0]) * 1.01,
