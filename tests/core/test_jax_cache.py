@@ -205,3 +205,31 @@ def test_cached_programs_give_identical_results(tmp_path, method, radiance):
     assert _jax_cache.entries(folder)[0] == n_cold  # nothing new written
     assert off["used"] == 0 and off["hits"] == 0
     assert warm["digest"] == cold["digest"] == off["digest"]
+
+
+def test_explain_compiles_flag_and_variable(monkeypatch, restore_cache):
+    """``--explain-compiles`` (and ``$PROBEPLACE_EXPLAIN_COMPILES``) turns on JAX's compile log and its
+    cache-miss explanations, for this process and (through the environment) the ones it starts."""
+    import jax
+
+    from probeplace.cli import main
+
+    for env in (_jax_cache.EXPLAIN_ENV, "JAX_LOG_COMPILES", "JAX_EXPLAIN_CACHE_MISSES"):
+        monkeypatch.setenv(env, "")  # recorded, so that what the flag sets is undone after the test
+        monkeypatch.delenv(env)
+    old = jax.config.jax_log_compiles, jax.config.jax_explain_cache_misses
+    try:
+        assert _jax_cache.explain_compiles() is False  # nothing asked
+        assert main(["--jax-cache", "off", "cache", "info"]) == 0
+        assert not jax.config.jax_log_compiles
+        assert main(["--explain-compiles", "--jax-cache", "off", "cache", "info"]) == 0
+        assert jax.config.jax_log_compiles and jax.config.jax_explain_cache_misses
+        assert os.environ[_jax_cache.EXPLAIN_ENV] == "1" and os.environ["JAX_LOG_COMPILES"] == "true"
+        jax.config.update("jax_log_compiles", False)
+        monkeypatch.setenv(_jax_cache.EXPLAIN_ENV, "off")
+        assert _jax_cache.explain_compiles() is False
+        monkeypatch.setenv(_jax_cache.EXPLAIN_ENV, "yes")
+        assert _jax_cache.explain_compiles() is True and jax.config.jax_log_compiles
+    finally:
+        jax.config.update("jax_log_compiles", old[0])
+        jax.config.update("jax_explain_cache_misses", old[1])

@@ -29,6 +29,8 @@ from probeplace.probes import (
     irradiance_map,
     load_probes,
     mip_chains,
+    pad_probes,
+    padded_capacity,
     path_traced_radiance,
     probe_bytes,
     save_probes,
@@ -524,3 +526,27 @@ def test_experiment_config_has_one_path_depth():
     assert "max_depth" not in {f.name for f in dataclasses.fields(BakeSchema)}
     with pytest.raises(ConfigError, match=r"bake\.max_depth=4: .*tracer\.max_depth − 1"):
         to_config({"bake": {"max_depth": 4}, "tracer": {"max_depth": 4}})
+
+
+def test_padding_to_a_capacity_changes_no_real_probe(room, getkey):
+    """Probe counts are padded to a few capacities (8, 16, 32, 64, then multiples of 64) so that programs
+    compiled for one count serve the next (issue 32); the padding rows are inactive and every real
+    probe's maps are those of the unpadded bake."""
+    caps = {n: padded_capacity(n) for n in (1, 5, 8, 9, 16, 17, 33, 64, 65, 128, 129, 200)}
+    assert caps == {1: 8, 5: 8, 8: 8, 9: 16, 16: 16, 17: 32, 33: 64, 64: 64, 65: 128, 128: 128, 129: 192, 200: 256}
+    pos = np.array([[2.0, 1.5, 2.5], [3.0, 2.0, 1.0], [1.0, 2.5, 3.0]], np.float32)
+    probes = ProbeSet(pos_world=jnp.asarray(pos), active=jnp.ones(3, bool))
+    padded = pad_probes(probes)
+    assert padded.capacity == 8 and int(padded.n_active) == 3
+    np.testing.assert_array_equal(np.asarray(padded.pos_world)[:3], pos)
+    assert pad_probes(padded) is padded  # already at a capacity
+    cfg = BakeConfig(radiance_res=4, irradiance_res=2, moments_res=2, n_sub=1, progress=False)
+    kw = dict(caster=BruteForceCaster(room), radiance_fn=_constant_radiance(0.25), config=cfg)
+    key = getkey()
+    a = bake_probes(room, probes, key=key, **kw)
+    b = bake_probes(room, padded, key=key, **kw)
+    assert not np.asarray(b.active)[3:].any()
+    # the same exact rays per real probe; only the batch around them differs (a few ulps at most of t)
+    for f in ("distance", "normal", "radiance", "irradiance", "moments"):
+        np.testing.assert_allclose(np.asarray(getattr(b, f))[:3], np.asarray(getattr(a, f)), rtol=1e-5, atol=1e-6)
+    np.testing.assert_array_equal(np.asarray(b.inside)[:3], np.asarray(a.inside))

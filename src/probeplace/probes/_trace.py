@@ -380,12 +380,13 @@ def make_tracer(
     xb, nb, hb, ambiguous, bound_flat, upper_flat = _tracer_maps(
         lf.distance, lf.normal, lf.far, sub=config.subdivide, tol=config.edge_tol, thickness=config.thickness
     )
-    margin = config.bounds_margin * jnp.max(b[1] - b[0])
+    # scalars and masks on the host (float32 as before): each eager jnp operation is one more program
+    margin = np.float32(config.bounds_margin) * np.max(bn[1] - bn[0])
     usable = np.asarray(lf.active) & ~np.asarray(lf.inside)
     spacing = _spacing(pos[usable])
     return LightFieldTracer(
         pos_world=jnp.asarray(lf.pos_world, jnp.float32),
-        usable=jnp.asarray(lf.active) & ~jnp.asarray(lf.inside),
+        usable=jnp.asarray(usable),
         surfel_x=xb,
         surfel_n=nb,
         has_surface=hb,
@@ -394,8 +395,8 @@ def make_tracer(
         upper_flat=upper_flat,
         spacing=jnp.asarray(spacing, jnp.float32),
         far=far,
-        t_far=jnp.linalg.norm(b[1] - b[0]) * 1.01,
-        bounds=jnp.stack([b[0] - margin, b[1] + margin]),
+        t_far=jnp.asarray(np.linalg.norm(bn[1] - bn[0]) * np.float32(1.01), jnp.float32),
+        bounds=jnp.asarray(np.stack([bn[0] - margin, bn[1] + margin]), jnp.float32),
         index=index,
         near=nearest_index(pos, usable, b, radius=config.fallback_radius * spacing, k=_FALLBACK_POOL),
         res=res,
