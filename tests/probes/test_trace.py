@@ -377,17 +377,67 @@ def test_tracer_setup_is_a_few_compiled_programs(room):
     compile (or persistent-cache load) it triggers."""
     from jax import monitoring
 
-    scene, lf1 = room
+    scene, _ = room
     lf = _bake(scene, np.array([[1.3, 1.1, 2.2], [2.5, 1.4, 3.1], [0.9, 2.0, 1.2]]), 4)
     names = []
-    listener = lambda event, secs, **kw: names.append(kw.get("fun_name")) if event.endswith(
-        "backend_compile_duration"
-    ) else None
+    listener = lambda event, secs, **kw: (
+        names.append(kw.get("fun_name")) if event.endswith("backend_compile_duration") else None
+    )
     monitoring.register_event_duration_secs_listener(listener)
     try:
         make_tracer(lf, scene.bounds)
     finally:
         monitoring.unregister_event_duration_listener(listener)
-    assert "jit(_tracer_maps)" in names  # the set-up ran through the one program, not around it
+    assert "jit(_probe_maps)" in names  # the set-up ran through the one program, not around it
     # measured: 12 (the voxel index's reads and the arrays' transfers included); eagerly it was ~200
     assert len(names) <= 16, " ".join(sorted(names))
+
+
+def test_unusable_probes_take_no_maps_and_change_no_ray(room):
+    """The tracer keeps the per-probe maps of usable probes only (issue 33): a set with an inactive probe
+    between two usable ones traces every ray exactly as the set of the two (probe numbers mapped), and its
+    maps have rows for the usable probes, not for every probe."""
+    scene, _ = room
+    a, x, b = [1.3, 1.1, 2.2], [2.0, 1.5, 2.5], [3.1, 1.9, 3.6]
+    three = _bake(scene, np.array([a, x, b]), 8)
+    three = eqx.tree_at(lambda lf: lf.active, three, jnp.asarray([True, False, True]))
+    two = _bake(scene, np.array([a, b]), 8)
+    t3, t2 = make_tracer(three, scene.bounds), make_tracer(two, scene.bounds)
+    assert t3.surfel_x.shape[0] == t2.surfel_x.shape[0] == 2  # rows for the usable probes only
+    np.testing.assert_array_equal(np.asarray(t3.row)[[0, 2]], [0, 1])
+    rng = np.random.default_rng(3)
+    o = jnp.asarray(rng.uniform([0.3, 0.3, 0.3], ROOM_HI - 0.3, (300, 3)), jnp.float32)
+    d = jnp.asarray(_unit(rng.normal(size=(300, 3))), jnp.float32)
+    r3, r2 = trace_light_field(t3, o, d), trace_light_field(t2, o, d)
+    for f in ("status", "t", "texel", "steps"):
+        np.testing.assert_array_equal(np.asarray(getattr(r3, f)), np.asarray(getattr(r2, f)))
+    p3, p2 = np.asarray(r3.probe), np.asarray(r2.probe)
+    np.testing.assert_array_equal(np.where(p3 == 2, 1, p3), p2)  # probe 2 of three is probe 1 of two
+    assert (p3 != 1).all()
+
+
+@pytest.mark.isa
+@pytest.mark.parametrize("sub", [1, 2])
+def test_cell_bounds_per_quadrant_agree_with_the_simple_form(sub):
+    """``_surfels.probe_cells`` (each neighbour's partner bound on its own quadrant of cells) against
+    ``probe_cells_reference`` (every bound on every cell) on the Cornell box, whose blocks give silhouettes,
+    concave and convex creases: the same ambiguous cells, and bounds that are minima of the same plane
+    samples (equal up to the rounding of fused arithmetic: 1e-6 relative)."""
+    from probeplace.probes._surfels import cell_directions, probe_cells, probe_cells_reference
+    from probeplace.probes._trace import _geometry_maps
+    from probeplace.scene import load_scene
+
+    scene = load_scene("cornell_box")
+    lo, hi = np.asarray(scene.bounds[0]), np.asarray(scene.bounds[1])
+    lf = _bake(scene, np.array([lo + (hi - lo) * [0.3, 0.45, 0.6], lo + (hi - lo) * [0.7, 0.2, 0.35]]), 16)
+    xb, nb, hb, wb = _geometry_maps(lf.distance, lf.normal, lf.far)
+    r = xb.shape[1] - 2
+    kw = dict(sub=sub, tol=0.05, thickness=0.03, big=float(4 * lf.far))
+    w9c, w9t = cell_directions(r * sub), cell_directions(r)
+    for p in range(2):
+        fast = jax.jit(lambda *a: probe_cells(*a, **kw))(xb[p], nb[p], hb[p], wb, w9c, w9t)
+        slow = jax.jit(lambda *a: probe_cells_reference(*a, **kw))(xb[p], nb[p], hb[p], wb, w9c, w9t)
+        np.testing.assert_array_equal(np.asarray(fast[2]), np.asarray(slow[2]))
+        assert np.asarray(slow[2]).any() and not np.asarray(slow[2]).all()  # a case with ambiguous cells
+        for a, b in zip(fast[:2], slow[:2], strict=True):
+            np.testing.assert_allclose(np.asarray(a), np.asarray(b), rtol=1e-6)

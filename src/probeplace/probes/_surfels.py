@@ -38,7 +38,6 @@ unknown at once, without descending (Wang 2019 §4.2 uses both bounds).
 
 from __future__ import annotations
 
-import jax
 import jax.numpy as jnp
 from jaxtyping import Array, Bool, Float
 
@@ -132,7 +131,55 @@ def _uses(sub: int, di: int, dj: int, m: int) -> Array:
 
 
 def probe_cells(xb, nb, hb, wb, w9_cells, w9_texels, *, sub, tol, thickness, big):
+    """:func:`probe_cells_reference`, computed per cell quadrant (issue 33): a neighbour's plane bounds
+    only the cells on its side of the texel (one quadrant for a diagonal neighbour, two for an edge one), so
+    its cell-level bound is evaluated there and not on all ``sub``² cells of every texel — 108 instead of
+    288 plane samples per texel for the concave-crease partners at ``sub`` = 2, and none of their own at
+    ``sub`` = 1, where a cell is its texel and the partner bound is the neighbour bound already computed.
+    Same values: each cell's bound is the minimum of the same samples."""
+    r = xb.shape[0] - 2
+    m = r * sub
+    up = lambda a: jnp.repeat(jnp.repeat(a, sub, axis=0), sub, axis=1)
+    own = lambda a: a[1 : r + 1, 1 : r + 1]
+    lower, upper = _bounds(up(own(xb)), up(own(nb)), up(own(hb)), w9_cells, thickness, big)
+    ambiguous = jnp.zeros((m, m), bool)
+    if tol is None:
+        return lower, upper, ambiguous
+    pairs = {(di, dj): _pair(xb, nb, hb, wb, di, dj, tol) for di, dj in NEIGHBOURS}
+    for (di, dj), (one, _) in pairs.items():
+        ambiguous = ambiguous | (_uses(sub, di, dj, m) & ~up(one))
+    partner_lo = {}  # per (quadrant, neighbour): its plane's lower bound over each quadrant cell's cone
+    for (di, dj), (_, concave) in pairs.items():
+        nbr = lambda a, di=di, dj=dj: a[1 + di : r + 1 + di, 1 + dj : r + 1 + dj]
+        lo, hi = _bounds(nbr(xb), nbr(nb), nbr(hb), w9_texels, thickness, big)
+        use = _uses(sub, di, dj, m) & ambiguous
+        lower = jnp.where(use, jnp.minimum(lower, up(lo)), lower)
+        upper = jnp.where(use, jnp.minimum(upper, up(hi)), upper)
+        for qr, qc in _quadrants(sub, di, dj):
+            w9 = w9_cells[qr::sub, qc::sub]  # the quadrant's cells, one per texel
+            cell_lo = lo if sub == 1 else _bounds(nbr(xb), nbr(nb), nbr(hb), w9, thickness, big)[0]
+            partner_lo[(qr, qc), (di, dj)] = (cell_lo, concave)
+    # A concave crease partner of a one-surface cell bounds the cell too (probe_cells_reference); applied
+    # after every neighbour's ambiguity bound, as there (min is order-free, the masks are not).
+    for ((qr, qc), _), (cell_lo, concave) in partner_lo.items():
+        sl = (slice(qr, None, sub), slice(qc, None, sub))
+        partner = ~ambiguous[sl] & concave
+        lower = lower.at[sl].set(jnp.where(partner, jnp.minimum(lower[sl], cell_lo), lower[sl]))
+    return lower, upper, ambiguous
+
+
+def _quadrants(sub: int, di: int, dj: int) -> list[tuple[int, int]]:
+    """The (row, col) parities of the cells whose footprint holds neighbour (di, dj) (:func:`_uses`)."""
+    if sub == 1:
+        return [(0, 0)]
+    rows = [0, 1] if di == 0 else [1 if di > 0 else 0]
+    cols = [0, 1] if dj == 0 else [1 if dj > 0 else 0]
+    return [(a, b) for a in rows for b in cols]
+
+
+def probe_cells_reference(xb, nb, hb, wb, w9_cells, w9_texels, *, sub, tol, thickness, big):
     """ONE probe's march cells (m = sub·R per axis): (lower bound, upper bound, ambiguous) maps, (m, m).
+    The simple form, every bound on every cell; :func:`probe_cells` must agree with it.
 
     The lower bound is that of the candidate surfels' planes (in front of it: free); the upper bound the
     radial distance beyond which a point is deep behind (by the thickness) the cell's surfel — in an
@@ -163,12 +210,3 @@ def probe_cells(xb, nb, hb, wb, w9_cells, w9_texels, *, sub, tol, thickness, big
         lo_cell, _ = _bounds(up(nbr(xb)), up(nbr(nb)), up(nbr(hb)), w9_cells, thickness, big)
         lower = jnp.where(partner, jnp.minimum(lower, lo_cell), lower)
     return lower, upper, ambiguous
-
-
-def all_probe_cells(xb, nb, hb, wb, *, sub, tol, thickness, big, batch: int = 8):
-    """:func:`probe_cells` for every probe (leading axis), ``batch`` probes at a time (bounded memory)."""
-    r = xb.shape[1] - 2
-    w9_cells, w9_texels = cell_directions(r * sub, xb.dtype), cell_directions(r, xb.dtype)
-    kw = dict(sub=sub, tol=tol, thickness=thickness, big=big)
-    f = lambda a: probe_cells(a[0], a[1], a[2], wb, w9_cells, w9_texels, **kw)
-    return jax.lax.map(f, (xb, nb, hb), batch_size=batch)

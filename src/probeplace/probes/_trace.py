@@ -71,10 +71,11 @@ from jaxtyping import Array, Bool, Float, Int
 from scipy.spatial import cKDTree
 
 from .._core import ConfigError, LightFieldProbes, add_border, oct_encode, texel_directions
+from .._core._progress import progress_bar
 from ._bake import _warn_probe_layout
 from ._index import GridIndex, VoxelIndex, grid_index, nearest_index, voxel_index
 from ._march import HIT, MISS, UNKNOWN, _candidates, _partners, trace_probe
-from ._surfels import all_probe_cells
+from ._surfels import cell_directions, probe_cells
 
 #: Status codes of :class:`TraceResult` (``UNRESOLVED``: no probe could decide).
 RAY_MISS, RAY_HIT, RAY_UNRESOLVED = 0, 1, 2
@@ -205,6 +206,8 @@ class LightFieldTracer(eqx.Module):
     Attributes:
         pos_world: probe centres.
         usable: probes the tracer may use (active, not inside geometry).
+        row: each probe's row in the per-probe maps below, which hold the usable probes only; an
+            unusable probe's row is 0 and never read.
         surfel_x: per geometry texel, *bordered* ((R+2)², the octahedral neighbours across the fold in
             the ring), the surfel point relative to the probe, r·ω_c (zeros: no surface).
         surfel_n: the surfel's normal, turned toward the probe (bordered).
@@ -228,12 +231,13 @@ class LightFieldTracer(eqx.Module):
 
     pos_world: Float[Array, "n_probes 3"]
     usable: Bool[Array, " n_probes"]
-    surfel_x: Float[Array, "n_probes rb rb 3"]
-    surfel_n: Float[Array, "n_probes rb rb 3"]
-    has_surface: Bool[Array, "n_probes rb rb"]
-    ambiguous: Bool[Array, "n_probes m m"]
-    bound_flat: Float[Array, "n_probes k"]
-    upper_flat: Float[Array, "n_probes k"]
+    row: Int[Array, " n_probes"]
+    surfel_x: Float[Array, "n_rows rb rb 3"]
+    surfel_n: Float[Array, "n_rows rb rb 3"]
+    has_surface: Bool[Array, "n_rows rb rb"]
+    ambiguous: Bool[Array, "n_rows m m"]
+    bound_flat: Float[Array, "n_rows k"]
+    upper_flat: Float[Array, "n_rows k"]
     spacing: Float[Array, ""]
     far: Float[Array, ""]
     t_far: Float[Array, ""]
@@ -315,14 +319,39 @@ def _mip_flat(level: Float[Array, "p m m"], how: str) -> Float[Array, "p k"]:
 
 
 @partial(jax.jit, static_argnames=("sub", "tol", "thickness"))
-def _tracer_maps(distance, normal, far, *, sub: int, tol: float, thickness: float):
-    """The tracer's per-probe arrays from the baked maps, as one compiled program (issue 32: eagerly, the
-    set-up was ~200 small programs): bordered surfel points, normals and has-surface flags, the ambiguous
-    cells, and the flattened min-MIP of the cells' lower bounds and max-MIP of their upper bounds."""
-    xb, nb, hb, wb = _geometry_maps(distance, normal, far)
+def _probe_maps(distance, normal, far, *, sub: int, tol: float, thickness: float):
+    """ONE probe's tracer arrays from its baked maps, as one compiled program (issue 32: eagerly, the
+    set-up was ~200 small programs; one probe at a time, so any probe count reuses it): bordered surfel
+    points, normals and has-surface flags, the ambiguous cells, and the flattened min-MIP of the cells'
+    lower bounds and max-MIP of their upper bounds."""
+    xb, nb, hb, wb = _geometry_maps(distance[None], normal[None], far)
     big = 4.0 * jnp.asarray(far, jnp.float32)
-    lower, upper, ambiguous = all_probe_cells(xb, nb, hb, wb, sub=sub, tol=tol, thickness=thickness, big=big)
-    return xb, nb, hb, ambiguous, _mip_flat(lower, "min"), _mip_flat(upper, "max")
+    r = xb.shape[1] - 2
+    w9_cells, w9_texels = cell_directions(r * sub, xb.dtype), cell_directions(r, xb.dtype)
+    lower, upper, ambiguous = probe_cells(
+        xb[0], nb[0], hb[0], wb, w9_cells, w9_texels, sub=sub, tol=tol, thickness=thickness, big=big
+    )
+    return xb[0], nb[0], hb[0], ambiguous, _mip_flat(lower[None], "min")[0], _mip_flat(upper[None], "max")[0]
+
+
+def _all_probe_maps(lf: LightFieldProbes, keep, config: TraceConfig) -> tuple[Array, ...]:
+    """:func:`_probe_maps` of the probes ``keep``, stacked in that order (filled on the host: no
+    program per probe count), with a progress bar when there is much to do."""
+    kw = dict(sub=config.subdivide, tol=config.edge_tol, thickness=config.thickness)
+    out = None
+    res = lf.distance.shape[-1] - 2
+    big_job = len(keep) * (res * config.subdivide) ** 2 >= 2**22  # ~ a few seconds and more
+    bar = progress_bar(total=len(keep), desc=f"tracer maps {res}²", unit="probe", disable=not big_job)
+    distance, normal = np.asarray(lf.distance), np.asarray(lf.normal)  # host rows: no program per row
+    for i, p in enumerate(keep):
+        arrays = [np.asarray(a) for a in _probe_maps(distance[p], normal[p], lf.far, **kw)]
+        if out is None:
+            out = [np.empty((len(keep), *a.shape), a.dtype) for a in arrays]
+        for o, a in zip(out, arrays, strict=True):
+            o[i] = a
+        bar.update(1)
+    bar.close()
+    return tuple(jnp.asarray(o) for o in out)
 
 
 def _spacing(pos: np.ndarray) -> float:
@@ -377,16 +406,19 @@ def make_tracer(
         except ConfigError:
             index = voxel_index(lf, b)
     far = jnp.asarray(lf.far, jnp.float32)
-    xb, nb, hb, ambiguous, bound_flat, upper_flat = _tracer_maps(
-        lf.distance, lf.normal, lf.far, sub=config.subdivide, tol=config.edge_tol, thickness=config.thickness
-    )
+    usable = np.asarray(lf.active) & ~np.asarray(lf.inside)
+    # The per-probe arrays of the usable probes only (issue 33: a grid in Sponza has 42 of 128 usable).
+    keep = np.flatnonzero(usable)
+    xb, nb, hb, ambiguous, bound_flat, upper_flat = _all_probe_maps(lf, keep if len(keep) else [0], config)
+    row = np.zeros(len(pos), np.int32)  # unusable probes: row 0, never read (the index skips them)
+    row[keep] = np.arange(len(keep), dtype=np.int32)
     # scalars and masks on the host (float32 as before): each eager jnp operation is one more program
     margin = np.float32(config.bounds_margin) * np.max(bn[1] - bn[0])
-    usable = np.asarray(lf.active) & ~np.asarray(lf.inside)
     spacing = _spacing(pos[usable])
     return LightFieldTracer(
         pos_world=jnp.asarray(lf.pos_world, jnp.float32),
         usable=jnp.asarray(usable),
+        row=jnp.asarray(row),
         surfel_x=xb,
         surfel_n=nb,
         has_surface=hb,
@@ -418,11 +450,12 @@ def _sees(tr: LightFieldTracer, probes: Int[Array, " k"], x: Float[Array, "3"]) 
 
     def one(p, ij, rel):
         rows, cols = _candidates(tr, ij)
-        xs, n, has = tr.surfel_x[p, rows, cols], tr.surfel_n[p, rows, cols], tr.has_surface[p, rows, cols]
+        w = tr.row[p]
+        xs, n, has = tr.surfel_x[w, rows, cols], tr.surfel_n[w, rows, cols], tr.has_surface[w, rows, cols]
         g = jnp.sum((rel[None, :] - xs) * n, axis=-1)
         front = ~has | (g > tr.config.fallback_margin * jnp.linalg.norm(xs, axis=-1))
         # one surface: in front of its own plane and its concave-crease partners' (``_march._partners``)
-        return jnp.all(front | ~jnp.where(tr.ambiguous[p, ij[0], ij[1]], True, _partners(tr, xs, n, has)))
+        return jnp.all(front | ~jnp.where(tr.ambiguous[w, ij[0], ij[1]], True, _partners(tr, xs, n, has)))
 
     return (probes >= 0) & tr.usable[q] & jax.vmap(one)(q, ij, rel)
 
