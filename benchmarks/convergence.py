@@ -101,6 +101,7 @@ class Bench:
 
     def __init__(self, key: str, args, size):
         from probeplace.evaluate import EvalConfig
+        from probeplace.probes import TraceConfig
         from probeplace.render import default_caster
         from probeplace.scene import load_scene
 
@@ -117,6 +118,7 @@ class Bench:
             max_depth=args.max_depth,
             timing_repeats=args.timing_repeats,
             backend=args.backend,
+            trace=TraceConfig(subdivide=args.subdivide),
         )
         self.shared: dict = {}
         self.warm: set = set()
@@ -145,6 +147,7 @@ class Bench:
                 else {"geometry_factor": self.args.geometry_factor}
             )
             | ({"backend": self.args.backend} if self.args.backend != "jax" else {})
+            | ({"subdivide": self.args.subdivide} if self.args.subdivide != 2 else {})
         )
 
     def steps(self, seed: int):
@@ -214,7 +217,7 @@ class Bench:
             log(f"{path.name}: cached")
             return json.loads(path.read_text())
         from probeplace.evaluate import perfect_trace, score, shade_probes
-        from probeplace.probes import check_bake_settings, glossy_maps
+        from probeplace.probes import check_bake_settings, glossy_maps, make_tracer
 
         log(f"{self.key} {grid} r{res} seed {seed}: baking {int(np.prod(dims_of(grid)))} probes")
         lf, times = self.bake(dims_of(grid), res, seed)
@@ -222,11 +225,18 @@ class Bench:
         ref, prim, crn, _ = self.steps(seed)
         check_bake_settings(lf, scene_name=self.scene.name, eval_max_depth=self.config.max_depth)
         t0 = time.perf_counter()
+        make_tracer(lf, self.scene.bounds, config=self.config.trace)  # timed alone: issue 33's figure
+        tracer_s = time.perf_counter() - t0
+        t0 = time.perf_counter()
         maps = glossy_maps(lf, self.config.glossy_filter, include_emission=False)
         shading = shade_probes(self.scene, lf, prim, self.config, maps=maps)
         perfect = perfect_trace(lf, prim, self.config, caster=self.caster, maps=maps)
         m = score(self.scene, lf, self.view, self.config, seed, ref, prim, crn, shading, perfect).metrics
         out = summarise(m) | times | {"eval_s": time.perf_counter() - t0, "settings": settings}
+        out |= {
+            "make_tracer_s": tracer_s,
+            "usable_probes": int((np.asarray(lf.active) & ~np.asarray(lf.inside)).sum()),
+        }
         write_text_atomic(path, json.dumps(out, indent=1, sort_keys=True))
         log(
             f"{self.key} {grid} r{res} seed {seed}: glossy {out['mse_glossy']:.3g} (floor "
@@ -348,6 +358,13 @@ def main(argv=None) -> dict:
         type=int,
         default=None,
         help="geometry maps at least this fine (BakeConfig.geometry_res; overrides --geometry-factor)",
+    )
+    ap.add_argument(
+        "--subdivide",
+        type=int,
+        default=2,
+        choices=[1, 2],
+        help="light-field tracer march cells per geometry texel and axis (probes.TraceConfig.subdivide)",
     )
     ap.add_argument(
         "--geometry-factor",

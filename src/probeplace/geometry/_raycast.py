@@ -76,6 +76,9 @@ class AbstractJaxRayCaster(AbstractRayCaster):
         return np.asarray(self.occluded(o, jnp.asarray(directions, o.dtype), tm))
 
 
+# One compiled program (per ray count): a host caster (Embree) calls it eagerly on millions of rays, where
+# its fifteen jnp operations were fifteen programs and as many passes over memory (issue 33).
+@eqx.filter_jit
 def complete_hit(
     scene: Scene,
     t: Float[Array, " n_rays"],

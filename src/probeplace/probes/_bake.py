@@ -387,6 +387,19 @@ def _warn_probe_layout(pos: np.ndarray, lo: np.ndarray, hi: np.ndarray, what: st
         )
 
 
+@jax.jit  # one program over the batch's rays (issue 33: 512² maps are 2 M rays a batch)
+def _texel_surfels(hit, d, far):
+    """(distance, normal, back face) of each texel-centre ray's hit: ``far`` and zeros on a miss. The side
+    the probe sees is the renderer's rule (the geometric normal decides), then the shading normal on that
+    side; where interpolation bends it past the ray (grazing texels), the geometric one."""
+    is_hit = hit.tri >= 0
+    back = is_hit & (jnp.sum(hit.geo_normal * d, axis=-1) > 0)
+    side = jnp.where(back, -1.0, 1.0).astype(d.dtype)[:, None]
+    n_or = hit.shading_normal * side
+    n_or = jnp.where((jnp.sum(n_or * d, axis=-1) < 0)[:, None], n_or, hit.geo_normal * side)
+    return jnp.where(is_hit, hit.t, far), jnp.where(is_hit[:, None], n_or, 0.0), back
+
+
 def _bake_batch(
     pos: Float[Array, "b 3"],
     caster,
@@ -398,22 +411,15 @@ def _bake_batch(
     key: jax.Array,
 ):
     b = pos.shape[0]
-    centre_dirs = jnp.broadcast_to(texel_directions(geo_res), (b, geo_res, geo_res, 3)).reshape(-1, 3)
-    origins = jnp.repeat(pos, geo_res * geo_res, axis=0)
-    hit = caster.closest_hit(origins, centre_dirs)
-    is_hit = np.asarray(hit.tri) >= 0
-    t = np.asarray(hit.t)
-    d = np.asarray(centre_dirs)
-    distance = np.where(is_hit, t, far).reshape(b, geo_res, geo_res)
-    ng = np.asarray(hit.geo_normal)
-    ns = np.asarray(hit.shading_normal)
-    # The side the probe sees (the renderer's rule: the geometric normal decides), then the shading
-    # normal on that side; where interpolation bends it past the ray (grazing texels) the geometric one.
-    back = is_hit & (np.sum(ng * d, axis=-1) > 0)
-    side = np.where(back, -1.0, 1.0)[:, None]
-    n_or = ns * side
-    n_or = np.where((np.sum(n_or * d, axis=-1) < 0)[:, None], n_or, ng * side)
-    normal = np.where(is_hit[:, None], n_or, 0.0).reshape(b, geo_res, geo_res, 3)
+    # the texel-centre rays built on the host (one array transfer each, no program)
+    centre_dirs = np.broadcast_to(np.asarray(texel_directions(geo_res)), (b, geo_res, geo_res, 3)).reshape(
+        -1, 3
+    )
+    origins = np.repeat(np.asarray(pos, np.float32), geo_res * geo_res, axis=0)
+    hit = caster.closest_hit(jnp.asarray(origins), jnp.asarray(centre_dirs))
+    dist, nrm, back = (np.asarray(a) for a in _texel_surfels(hit, centre_dirs, far))
+    distance = dist.reshape(b, geo_res, geo_res)
+    normal = nrm.reshape(b, geo_res, geo_res, 3)
     backface = back.reshape(b, geo_res, geo_res)
 
     k_dir, k_rad = jax.random.split(key)
