@@ -441,3 +441,21 @@ def test_cell_bounds_per_quadrant_agree_with_the_simple_form(sub):
         assert np.asarray(slow[2]).any() and not np.asarray(slow[2]).all()  # a case with ambiguous cells
         for a, b in zip(fast[:2], slow[:2], strict=True):
             np.testing.assert_allclose(np.asarray(a), np.asarray(b), rtol=1e-6)
+
+
+def test_tracer_bytes_counts_the_maps_it_builds(room):
+    """``tracer_bytes`` (the memory check's and the metrics' estimate) against the arrays make_tracer
+    builds, and a tracer that cannot fit is refused in one line before any work."""
+    from probeplace._core import ResourceError
+    from probeplace.probes import tracer_bytes
+
+    scene, lf = room
+    for sub in (1, 2):
+        tr = make_tracer(lf, scene.bounds, config=TraceConfig(subdivide=sub))
+        fields = ("surfel_x", "surfel_n", "has_surface", "ambiguous", "bound_flat", "upper_flat")
+        built = sum(np.asarray(getattr(tr, f)).nbytes for f in fields)
+        assert tracer_bytes(1, tr.res, sub) == built
+    with pytest.MonkeyPatch.context() as mp:
+        mp.setenv("PROBEPLACE_MAX_BYTES", "100KB")  # the 32² tracer: 2 × 77 kB
+        with pytest.raises(ResourceError, match="light-field tracer of 1 usable probes at geometry_res=32"):
+            make_tracer(lf, scene.bounds)

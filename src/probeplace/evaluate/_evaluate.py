@@ -52,6 +52,7 @@ import jax.numpy as jnp
 import numpy as np
 
 from .._core import ConfigError, LightFieldProbes, Scene, scene_box
+from ..probes import tracer_bytes
 from ..probes._bake import check_bake_settings
 from ..probes._glossy import glossy_maps
 from ..probes._trace import RAY_UNRESOLVED
@@ -98,8 +99,9 @@ class EvalResult:
     images: dict[str, np.ndarray]
 
 
-def memory_bytes(lf: LightFieldProbes) -> dict:
-    """Probe memory as stored (Wang 2019 Table 2 style): total, per probe and by map, in bytes."""
+def memory_bytes(lf: LightFieldProbes, subdivide: int = 2) -> dict:
+    """Probe memory as stored (Wang 2019 Table 2 style): total, per probe and by map, in bytes; and the
+    light-field tracer's maps per usable probe at ``subdivide`` (``probes.tracer_bytes``)."""
     by_map = {
         name: int(np.asarray(getattr(lf, name)).nbytes)
         for name in ("radiance", "emission", "normal", "distance", "irradiance", "moments")
@@ -109,7 +111,13 @@ def memory_bytes(lf: LightFieldProbes) -> dict:
         by_map["backface"] = int(np.asarray(lf.backface).nbytes)
     total = sum(by_map.values())
     n = int(lf.pos_world.shape[0])
-    return {"total": total, "per_probe": total / max(n, 1), "by_map": by_map}
+    tracer = tracer_bytes(1, int(lf.distance.shape[-1]) - 2, subdivide)
+    return {
+        "total": total,
+        "per_probe": total / max(n, 1),
+        "by_map": by_map,
+        "tracer_per_usable_probe": tracer,
+    }
 
 
 def _mse(a: np.ndarray, b: np.ndarray) -> float:
@@ -340,6 +348,6 @@ def score(
         "shading_s_per_frame": shading.seconds_per_frame,
         "shading_compile_s": shading.compile_seconds,
         "reference_s": ref.seconds,
-        "memory_bytes": memory_bytes(lf),
+        "memory_bytes": memory_bytes(lf, config.trace.subdivide),
     }
     return EvalResult(metrics=metrics, images=images)

@@ -71,6 +71,7 @@ from jaxtyping import Array, Bool, Float, Int
 from scipy.spatial import cKDTree
 
 from .._core import ConfigError, LightFieldProbes, add_border, oct_encode, texel_directions
+from .._core._errors import check_memory
 from .._core._progress import progress_bar
 from ._bake import _warn_probe_layout
 from ._index import GridIndex, VoxelIndex, grid_index, nearest_index, voxel_index
@@ -334,12 +335,28 @@ def _probe_maps(distance, normal, far, *, sub: int, tol: float, thickness: float
     return xb[0], nb[0], hb[0], ambiguous, _mip_flat(lower[None], "min")[0], _mip_flat(upper[None], "max")[0]
 
 
+def tracer_bytes(n_usable: int, res: int, subdivide: int) -> int:
+    """Bytes of a tracer's per-probe maps (:class:`LightFieldTracer`) for ``n_usable`` usable probes at
+    geometry resolution ``res``: bordered surfel points and normals (float32 × 3 each) and has-surface
+    flags, ambiguous cells (bool) and the lower- and upper-bound pyramids (float32, every level) of the
+    ``res·subdivide``² march cells. 18.8 MB a probe at 512², ``subdivide`` 2."""
+    rb, m = res + 2, res * subdivide
+    levels = sum((m >> k) ** 2 for k in range(m.bit_length()))
+    return int(n_usable) * (rb * rb * (2 * 3 * 4 + 1) + m * m + 2 * 4 * levels)
+
+
 def _all_probe_maps(lf: LightFieldProbes, keep, config: TraceConfig) -> tuple[Array, ...]:
     """:func:`_probe_maps` of the probes ``keep``, stacked in that order (filled on the host: no
     program per probe count), with a progress bar when there is much to do."""
     kw = dict(sub=config.subdivide, tol=config.edge_tol, thickness=config.thickness)
     out = None
     res = lf.distance.shape[-1] - 2
+    check_memory(  # built on the host, then handed to JAX: twice the maps at the peak
+        2 * tracer_bytes(len(keep), res, config.subdivide),
+        f"light-field tracer of {len(keep)} usable probes at geometry_res={res}, "
+        f"subdivide={config.subdivide}",
+        "lower the geometry maps' resolution (BakeConfig.geometry_res), use fewer probes, or subdivide=1",
+    )
     big_job = len(keep) * (res * config.subdivide) ** 2 >= 2**22  # ~ a few seconds and more
     bar = progress_bar(total=len(keep), desc=f"tracer maps {res}²", unit="probe", disable=not big_job)
     distance, normal = np.asarray(lf.distance), np.asarray(lf.normal)  # host rows: no program per row
