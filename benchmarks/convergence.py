@@ -118,7 +118,7 @@ class Bench:
             max_depth=args.max_depth,
             timing_repeats=args.timing_repeats,
             backend=args.backend,
-            trace=TraceConfig(subdivide=args.subdivide),
+            trace=TraceConfig(subdivide=args.subdivide, engine=args.trace_engine),
         )
         self.shared: dict = {}
         self.warm: set = set()
@@ -148,6 +148,7 @@ class Bench:
             )
             | ({"backend": self.args.backend} if self.args.backend != "jax" else {})
             | ({"subdivide": self.args.subdivide} if self.args.subdivide != 2 else {})
+            | {"trace_engine": self.args.trace_engine}
         )
 
     def steps(self, seed: int):
@@ -358,6 +359,13 @@ def main(argv=None) -> dict:
         type=int,
         default=None,
         help="geometry maps at least this fine (BakeConfig.geometry_res; overrides --geometry-factor)",
+    )
+    ap.add_argument(
+        "--trace-engine",
+        default="wavefront",
+        choices=["wavefront", "per_ray"],
+        help="light-field tracer engine of the shading (the runner's eval.trace_engine; per_ray: the simple "
+        "reference, much slower at high resolution)",
     )
     ap.add_argument(
         "--subdivide",

@@ -9,9 +9,11 @@ repeated here; the document lists them from those tests' messages under "Also re
 
 from __future__ import annotations
 
+import contextlib
 import dataclasses
 import functools
 import json
+import os
 import struct
 from collections.abc import Callable
 from pathlib import Path
@@ -313,6 +315,28 @@ def _probe_json(doc):
 _PS = "probeplace.ProbeSet/1"
 
 
+def _tracer_over_limit(c):
+    """make_tracer of the baked Cornell probes with the memory limit at 100 kB (restored afterwards)."""
+    from probeplace.probes import make_tracer
+
+    lf = c.baked()
+    with _limit("100KB"):
+        return make_tracer(lf, c.cornell().bounds)
+
+
+@contextlib.contextmanager
+def _limit(value: str):
+    """``$PROBEPLACE_MAX_BYTES=value`` inside the block (the variable restored afterwards)."""
+    from probeplace._core._errors import MAX_BYTES_ENV
+
+    old = os.environ.get(MAX_BYTES_ENV)
+    os.environ[MAX_BYTES_ENV] = value
+    try:
+        yield
+    finally:
+        os.environ.pop(MAX_BYTES_ENV) if old is None else os.environ.__setitem__(MAX_BYTES_ENV, old)
+
+
 def _tracer_with(pos_fn, bounds=None):
     def run(c):
         import equinox as eqx
@@ -601,6 +625,15 @@ CATALOGUE: list[Entry] = [
         _sdf_tiny_voxels,
         ResourceError,
         r"lattice .*GiB to build, limit \d+ GiB\); use a larger voxel_size",
+    ),
+    Entry(
+        "tracer-too-large",
+        "memory",
+        "light-field tracer over the memory limit ($PROBEPLACE_MAX_BYTES=100KB; 16² maps of 8 probes)",
+        _tracer_over_limit,
+        ResourceError,
+        r"light-field tracer of \d+ usable probes at geometry_res=16, subdivide=2 needs ~\d+ bytes .* over "
+        r"the limit .*lower the geometry maps' resolution",
     ),
     Entry(
         "render-image-too-large",
@@ -1330,16 +1363,10 @@ def _max_bytes_env(value: str):
     """``$PROBEPLACE_MAX_BYTES=value`` read by the memory check (the variable restored afterwards)."""
 
     def run(c):
-        import os
+        from probeplace._core._errors import memory_limit_bytes
 
-        from probeplace._core._errors import MAX_BYTES_ENV, memory_limit_bytes
-
-        old = os.environ.get(MAX_BYTES_ENV)
-        os.environ[MAX_BYTES_ENV] = value
-        try:
+        with _limit(value):
             return memory_limit_bytes()
-        finally:
-            os.environ.pop(MAX_BYTES_ENV) if old is None else os.environ.__setitem__(MAX_BYTES_ENV, old)
 
     return run
 
