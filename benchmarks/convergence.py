@@ -11,7 +11,9 @@ For each scene (Cornell box "front", Crytek Sponza "CameraMain"), uniform grids 
 ``glossy_filter`` of the evaluation's default). Per cell: the glossy and diffuse MSE, the glossy MSE's
 parts (perfect trace, trace share and ``trace_excess``, split by ray status, resolved only), noise floors,
 black images, agreement of resolved hits with the exact distance, unresolved share, 95 % intervals, bake
-time (compile apart: a one-batch warm-up first) and shading time (compile apart).
+time (compile apart: a one-batch warm-up first), ``make_tracer`` time (``make_tracer_s``, with
+``usable_probes``: the tracer's set-up, issue 33) and shading time (compile apart; ``--trace-engine``,
+default the runner's ``wavefront``).
 
 The reference, the primary samples and the CRN glossy reference depend only on (scene, evaluation
 settings, seed): they are computed once per scene and seed with the evaluation's public steps
@@ -299,6 +301,9 @@ def run_scene(key: str, args, plan: dict, result: dict) -> None:
             cells[f"{grid}_r{res}"] = c
             for f in ("mse_over_floor", "agreement", "unresolved", "trace_excess"):
                 result[f"{key}_{grid}_r{res}_{f}"] = c[f]
+            # the instrument's costs (issue 33); null for a cell cached before they were recorded
+            for f in ("bake_s", "make_tracer_s", "usable_probes", "shading_s_per_frame"):
+                result[f"{key}_{grid}_r{res}_{f}"] = c.get(f)
             for f in (
                 "glossy_over_black",
                 "diffuse_over_black",

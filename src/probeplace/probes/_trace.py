@@ -351,12 +351,6 @@ def _all_probe_maps(lf: LightFieldProbes, keep, config: TraceConfig) -> tuple[Ar
     kw = dict(sub=config.subdivide, tol=config.edge_tol, thickness=config.thickness)
     out = None
     res = lf.distance.shape[-1] - 2
-    check_memory(  # built on the host, then handed to JAX: twice the maps at the peak
-        2 * tracer_bytes(len(keep), res, config.subdivide),
-        f"light-field tracer of {len(keep)} usable probes at geometry_res={res}, "
-        f"subdivide={config.subdivide}",
-        "lower the geometry maps' resolution (BakeConfig.geometry_res), use fewer probes, or subdivide=1",
-    )
     big_job = len(keep) * (res * config.subdivide) ** 2 >= 2**22  # ~ a few seconds and more
     bar = progress_bar(total=len(keep), desc=f"tracer maps {res}²", unit="probe", disable=not big_job)
     distance, normal = np.asarray(lf.distance), np.asarray(lf.normal)  # host rows: no program per row
@@ -417,15 +411,21 @@ def make_tracer(
     b = jnp.asarray(bn)
     # Inactive rows (e.g. padding to a fixed size so compiled code is reused) are not probes: skip them.
     _warn_probe_layout(pos[np.asarray(lf.active)], bn[0], bn[1], "make_tracer")
+    usable = np.asarray(lf.active) & ~np.asarray(lf.inside)
+    # The per-probe arrays of the usable probes only (issue 33: a grid in Sponza has 42 of 128 usable).
+    keep = np.flatnonzero(usable)
+    check_memory(  # before the index: built on the host, then handed to JAX, twice the maps at the peak
+        2 * tracer_bytes(len(keep), res, config.subdivide),
+        f"light-field tracer of {len(keep)} usable probes at geometry_res={res}, "
+        f"subdivide={config.subdivide}",
+        "lower the geometry maps' resolution (BakeConfig.geometry_res), use fewer probes, or subdivide=1",
+    )
     if index is None:
         try:
             index = grid_index(lf)
         except ConfigError:
             index = voxel_index(lf, b)
     far = jnp.asarray(lf.far, jnp.float32)
-    usable = np.asarray(lf.active) & ~np.asarray(lf.inside)
-    # The per-probe arrays of the usable probes only (issue 33: a grid in Sponza has 42 of 128 usable).
-    keep = np.flatnonzero(usable)
     xb, nb, hb, ambiguous, bound_flat, upper_flat = _all_probe_maps(lf, keep if len(keep) else [0], config)
     row = np.zeros(len(pos), np.int32)  # unusable probes: row 0, never read (the index skips them)
     row[keep] = np.arange(len(keep), dtype=np.int32)
