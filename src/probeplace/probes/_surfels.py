@@ -38,6 +38,9 @@ unknown at once, without descending (Wang 2019 §4.2 uses both bounds).
 
 from __future__ import annotations
 
+from functools import partial
+
+import jax
 import jax.numpy as jnp
 from jaxtyping import Array, Bool, Float
 
@@ -56,6 +59,7 @@ def plane_distance(x: Array, n: Array, w: Array) -> Array:
     return jnp.where(ok, xn / jnp.where(ok, wn, 1.0), jnp.inf)
 
 
+@partial(jax.jit, static_argnames=("m", "dtype"))
 def cell_directions(m: int, dtype=jnp.float32) -> Float[Array, "m m 9 3"]:
     """Unit directions of each cell of an m×m octahedral grid: centre, corners and edge midpoints."""
     h = 2.0 / m
