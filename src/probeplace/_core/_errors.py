@@ -49,9 +49,19 @@ def check_memory(need_bytes: int, what: str, hint: str) -> None:
         what: what would be allocated, e.g. ``"bake of 10 probes at radiance_res=4096"``.
         hint: how to make it fit.
     """
-    limit = memory_limit_bytes()
+    import os
+
+    limit = memory_limit_bytes()  # the message names where it came from: the variable or the machine
     if need_bytes > limit:
+        size = (
+            f"{need_bytes / 2**30:.1f} GiB" if need_bytes >= 2**30 // 10 else f"{need_bytes / 2**20:.1f} MiB"
+        )
+        whose = (
+            f"${MAX_BYTES_ENV}"
+            if os.environ.get(MAX_BYTES_ENV)
+            else f"half the physical memory; ${MAX_BYTES_ENV} overrides"
+        )
         raise ResourceError(
-            f"{what} needs ~{int(need_bytes)} bytes ({need_bytes / 2**30:.1f} GiB), over the limit of "
-            f"{limit} bytes (half the physical memory; ${MAX_BYTES_ENV} overrides); {hint}"
+            f"{what} needs ~{int(need_bytes)} bytes ({size}), over the limit of {limit} bytes ({whose}); "
+            f"{hint}"
         )
