@@ -439,6 +439,12 @@ def test_cell_bounds_per_quadrant_agree_with_the_simple_form(sub):
         slow = jax.jit(lambda *a: probe_cells_reference(*a, **kw))(xb[p], nb[p], hb[p], wb, w9c, w9t)
         np.testing.assert_array_equal(np.asarray(fast[2]), np.asarray(slow[2]))
         assert np.asarray(slow[2]).any() and not np.asarray(slow[2]).all()  # a case with ambiguous cells
+        # Each bound is the min (max) of the same float32 plane samples, computed by the same operations in
+        # the same order; the two programs differ only in how XLA fuses them, i.e. where it contracts a
+        # multiply-add of the 3-term dot products (x·n, ω·n) into an FMA: at most ~2 ulps of a term, so a
+        # few ulps of a sample that does not graze its plane. 1e-6 is 8 ulps. Measured: bit-identical on
+        # AVX-512 and under the AVX2 and SSE4.2 caps (both sub). A grazing sample (ω·n ≈ 0) could differ
+        # more; none is the extreme of a cell here, which this test would report.
         for a, b in zip(fast[:2], slow[:2], strict=True):
             np.testing.assert_allclose(np.asarray(a), np.asarray(b), rtol=1e-6)
 

@@ -152,23 +152,19 @@ def probe_cells(xb, nb, hb, wb, w9_cells, w9_texels, *, sub, tol, thickness, big
     pairs = {(di, dj): _pair(xb, nb, hb, wb, di, dj, tol) for di, dj in NEIGHBOURS}
     for (di, dj), (one, _) in pairs.items():
         ambiguous = ambiguous | (_uses(sub, di, dj, m) & ~up(one))
-    partner_lo = {}  # per (quadrant, neighbour): its plane's lower bound over each quadrant cell's cone
     for (di, dj), (_, concave) in pairs.items():
         nbr = lambda a, di=di, dj=dj: a[1 + di : r + 1 + di, 1 + dj : r + 1 + dj]
         lo, hi = _bounds(nbr(xb), nbr(nb), nbr(hb), w9_texels, thickness, big)
         use = _uses(sub, di, dj, m) & ambiguous
         lower = jnp.where(use, jnp.minimum(lower, up(lo)), lower)
         upper = jnp.where(use, jnp.minimum(upper, up(hi)), upper)
+        # A concave crease partner of a one-surface cell bounds the cell too (probe_cells_reference), over
+        # the cell's own cone: evaluated on the quadrants of cells on the neighbour's side only.
         for qr, qc in _quadrants(sub, di, dj):
-            w9 = w9_cells[qr::sub, qc::sub]  # the quadrant's cells, one per texel
-            cell_lo = lo if sub == 1 else _bounds(nbr(xb), nbr(nb), nbr(hb), w9, thickness, big)[0]
-            partner_lo[(qr, qc), (di, dj)] = (cell_lo, concave)
-    # A concave crease partner of a one-surface cell bounds the cell too (probe_cells_reference); applied
-    # after every neighbour's ambiguity bound, as there (min is order-free, the masks are not).
-    for ((qr, qc), _), (cell_lo, concave) in partner_lo.items():
-        sl = (slice(qr, None, sub), slice(qc, None, sub))
-        partner = ~ambiguous[sl] & concave
-        lower = lower.at[sl].set(jnp.where(partner, jnp.minimum(lower[sl], cell_lo), lower[sl]))
+            sl = (slice(qr, None, sub), slice(qc, None, sub))  # the quadrant's cells, one per texel
+            cell_lo = lo if sub == 1 else _bounds(nbr(xb), nbr(nb), nbr(hb), w9_cells[sl], thickness, big)[0]
+            partner = ~ambiguous[sl] & concave
+            lower = lower.at[sl].set(jnp.where(partner, jnp.minimum(lower[sl], cell_lo), lower[sl]))
     return lower, upper, ambiguous
 
 
