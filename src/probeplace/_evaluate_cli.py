@@ -10,11 +10,14 @@ wavefront light-field tracer (the runner's ``eval.trace_engine``).
 from __future__ import annotations
 
 import argparse
+import functools
 import json
 import re
 import sys
 import time
+from collections.abc import Mapping
 from pathlib import Path
+from types import MappingProxyType
 from typing import ClassVar
 
 import numpy as np
@@ -125,10 +128,11 @@ RUNNER_KEYS = {
 }
 
 
-def runner_defaults() -> dict:
+@functools.cache  # fixed for the process; the options, the checks and --help all read it
+def runner_defaults() -> Mapping:
     """The default of every option of :data:`RUNNER_KEYS`, read from the runner's defaults
     (``ExperimentConfig()``: its ``bake``, ``tracer`` and ``eval`` groups; the tracer's hierarchy is the
-    library's ``TraceConfig``'s, as in a run)."""
+    library's ``TraceConfig``'s, as in a run). Read-only."""
     from .experiment import ExperimentConfig, bake_values, eval_values
     from .probes import TraceConfig
 
@@ -138,7 +142,7 @@ def runner_defaults() -> dict:
     out |= {"radiance_res": bake["radiance_res"], "geometry_res": bake["geometry_res"]}
     out |= {"bake_spp": cfg.bake.spp, "seed": cfg.seed, "trace_engine": cfg.eval.trace_engine}
     out["hierarchy"] = TraceConfig().hierarchy
-    return out
+    return MappingProxyType(out)
 
 
 class _RunnerDefault(argparse._StoreAction):
@@ -146,15 +150,11 @@ class _RunnerDefault(argparse._StoreAction):
     reads ``(default: 64, eval.width)`` from the runner's defaults, only when ``--help`` prints it (the
     parser stays light to build)."""
 
-    _defaults: dict | None = None
-
     @property
     def help(self) -> str:
         if "{runner}" not in self._help:
             return self._help
-        if _RunnerDefault._defaults is None:
-            _RunnerDefault._defaults = runner_defaults()
-        value = _RunnerDefault._defaults[self.dest]
+        value = runner_defaults()[self.dest]
         return self._help.replace("{runner}", f"(default: {value}, the runner's {RUNNER_KEYS[self.dest]})")
 
     @help.setter
