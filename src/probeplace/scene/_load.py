@@ -33,13 +33,7 @@ from ._obj import load_obj
 from ._ply import load_ply
 from ._raw import RawScene, ensure_views
 from ._registry import BUILTIN_SCENES
-from ._search import SCENE_EXTENSIONS as SCENE_EXTENSIONS
-from ._search import SCENE_PATH_ENV as SCENE_PATH_ENV
-from ._search import SceneEntry as SceneEntry
-from ._search import find_scene_file as find_scene_file
-from ._search import list_scenes as list_scenes
-from ._search import looks_like_path as looks_like_path
-from ._search import scene_search_path as scene_search_path
+from ._search import SCENE_EXTENSIONS, SCENE_PATH_ENV, find_scene_file, looks_like_path, scene_search_path
 from ._sidecar import (
     SceneConfig,
     merge_scene_configs,

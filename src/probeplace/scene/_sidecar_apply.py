@@ -156,8 +156,9 @@ def scene_layers(name_or_path, overrides=None) -> tuple[Path | None, list[SceneC
     Raises:
         ConfigError: an invalid sidecar or ``overrides`` (the load has refused them already).
     """
-    from ._load import find_scene_file, looks_like_path, scene_config_layers
+    from ._load import scene_config_layers
     from ._registry import BUILTIN_SCENES
+    from ._search import find_scene_file, looks_like_path
 
     if looks_like_path(name_or_path):
         path = Path(name_or_path)
