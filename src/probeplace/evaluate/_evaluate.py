@@ -99,7 +99,7 @@ class EvalResult:
     images: dict[str, np.ndarray]
 
 
-def memory_bytes(lf: LightFieldProbes, subdivide: int = 2) -> dict:
+def memory_bytes(lf: LightFieldProbes, subdivide: int) -> dict:
     """Probe memory as stored (Wang 2019 Table 2 style): total, per probe and by map, in bytes; and the
     light-field tracer's maps per usable probe at ``subdivide`` (``probes.tracer_bytes``)."""
     by_map = {
