@@ -64,7 +64,7 @@ def _eval(tmp_path, *extra) -> list[str]:
     [
         (["--view", "nosuchview"], ["--view", "nosuchview"]),
         (["--width", "0"], ["--width: EvalConfig.width must be a positive int, got 0"]),
-        (["--spp", "0"], ["--spp: EvalConfig.spp must be a positive int, got 0"]),
+        (["--spp", "0"], ["--spp: EvalConfig.spp must be a positive int or 'auto', got 0"]),
         (["--glossy-spp", "-1"], ["--glossy-spp"]),
         (["--width", "100000000", "--height", "100000000"], ["--width × --height", "bytes"]),
         (["--bake-spp", "0"], ["--bake-spp"]),

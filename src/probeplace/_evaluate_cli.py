@@ -10,6 +10,7 @@ wavefront light-field tracer (the runner's ``eval.trace_engine``).
 from __future__ import annotations
 
 import argparse
+import dataclasses
 import functools
 import json
 import re
@@ -22,7 +23,16 @@ from typing import ClassVar
 
 import numpy as np
 
-from ._core import ConfigError
+from ._core import ConfigError, check_count, is_auto
+
+
+def _count(text: str) -> int | str:
+    """A count option's value: an int, or the text as given (``auto``; the config refuses other text in
+    one line, naming the option)."""
+    try:
+        return int(text)
+    except ValueError:
+        return text
 
 
 def add_parser(sub) -> None:
@@ -49,16 +59,7 @@ def add_parser(sub) -> None:
     )
     e.add_argument("--width", type=int, help="image width, pixels {runner}", action=_RunnerDefault)
     e.add_argument("--height", type=int, help="image height, pixels {runner}", action=_RunnerDefault)
-    e.add_argument("--spp", type=int, help="reference paths per pixel {runner}", action=_RunnerDefault)
-    e.add_argument(
-        "--glossy-spp", type=int, help="GGX directions per pixel (CRN) {runner}", action=_RunnerDefault
-    )
-    e.add_argument(
-        "--glossy-ref-spp",
-        type=int,
-        help="reference paths per GGX direction (CRN glossy reference, ≥ 2) {runner}",
-        action=_RunnerDefault,
-    )
+    _add_sample_options(e)
     e.add_argument(
         "--max-depth",
         type=int,
@@ -88,16 +89,7 @@ def add_parser(sub) -> None:
     e.add_argument(
         "--seed", type=int, help="random seed of the bake and the renders {runner}", action=_RunnerDefault
     )
-    e.add_argument(
-        "--radiance-res", type=int, help="bake: radiance map resolution {runner}", action=_RunnerDefault
-    )
-    e.add_argument("--bake-spp", type=int, help="bake: paths per texel ray {runner}", action=_RunnerDefault)
-    e.add_argument("--save-baked", default=None, help="bake: also save the baked probes to this .npz")
-    e.add_argument(
-        "--geometry-res",
-        type=int,
-        help="bake: geometry (distance, normal) map resolution (default: --radiance-res)",
-    )
+    _add_bake_options(e)
     e.add_argument(
         "--backend",
         choices=BACKEND_CHOICES,
@@ -106,6 +98,71 @@ def add_parser(sub) -> None:
         action=_RunnerDefault,
     )
     e.set_defaults(func=run)
+
+
+def _add_sample_options(e) -> None:
+    """The reference's sample counts (``auto``: chosen from a noise target, issue 33) and their target."""
+    e.add_argument(
+        "--spp",
+        type=_count,
+        help="reference paths per pixel, or auto: the fewest whose diffuse-indirect noise floor is at most "
+        "--noise-target of the black image's MSE, from a pilot render {runner}",
+        action=_RunnerDefault,
+    )
+    e.add_argument(
+        "--glossy-spp", type=int, help="GGX directions per pixel (CRN) {runner}", action=_RunnerDefault
+    )
+    e.add_argument(
+        "--glossy-ref-spp",
+        type=_count,
+        help="reference paths per GGX direction (CRN glossy reference, ≥ 2), or auto: chosen for "
+        "--noise-target as --spp {runner}",
+        action=_RunnerDefault,
+    )
+    e.add_argument(
+        "--noise-target",
+        type=float,
+        help="an auto --spp / --glossy-ref-spp: the reference noise floor to reach, as a fraction of the "
+        "black image's MSE {runner}",
+        action=_RunnerDefault,
+    )
+    e.add_argument(
+        "--max-spp",
+        type=int,
+        help="an auto --spp / --glossy-ref-spp: the most paths it may reach {runner}",
+        action=_RunnerDefault,
+    )
+
+
+def _add_bake_options(e) -> None:
+    """The bake's settings (a ProbeSet .json is baked first), its count and noise target among them."""
+    e.add_argument(
+        "--radiance-res", type=int, help="bake: radiance map resolution {runner}", action=_RunnerDefault
+    )
+    e.add_argument(
+        "--bake-spp",
+        type=_count,
+        help="bake: paths per texel ray, or auto: chosen by a pilot for --bake-noise-target {runner}",
+        action=_RunnerDefault,
+    )
+    e.add_argument(
+        "--bake-noise-target",
+        type=float,
+        help="bake: an auto --bake-spp's relative noise of the radiance maps {runner}",
+        action=_RunnerDefault,
+    )
+    e.add_argument(
+        "--bake-max-spp",
+        type=int,
+        help="bake: the most paths per texel ray an auto --bake-spp may reach {runner}",
+        action=_RunnerDefault,
+    )
+    e.add_argument("--save-baked", default=None, help="bake: also save the baked probes to this .npz")
+    e.add_argument(
+        "--geometry-res",
+        type=int,
+        help="bake: geometry (distance, normal) map resolution (default: --radiance-res)",
+    )
 
 
 # The options whose default is the runner's: option dest → where the runner keeps it (for messages).
@@ -123,6 +180,10 @@ RUNNER_KEYS = {
     "radiance_res": "bake.radiance_res",
     "geometry_res": "bake.geometry_res",
     "bake_spp": "bake.spp",
+    "noise_target": "tracer.noise_target",
+    "max_spp": "tracer.max_spp",
+    "bake_noise_target": "bake.noise_target",
+    "bake_max_spp": "bake.max_spp",
     "trace_engine": "eval.trace_engine",
     "hierarchy": "probes.TraceConfig.hierarchy",
 }
@@ -140,6 +201,7 @@ def runner_defaults() -> Mapping:
     ev, bake = eval_values(cfg), bake_values(cfg)
     out = {k: ev[k] for k in RUNNER_KEYS if k in ev}
     out |= {"radiance_res": bake["radiance_res"], "geometry_res": bake["geometry_res"]}
+    out |= {"bake_noise_target": bake["noise_target"], "bake_max_spp": bake["max_spp"]}
     out |= {"bake_spp": cfg.bake.spp, "seed": cfg.seed, "trace_engine": cfg.eval.trace_engine}
     out["hierarchy"] = TraceConfig().hierarchy
     return MappingProxyType(out)
@@ -176,6 +238,10 @@ def _as_option(e: ConfigError) -> ConfigError:
     if m is None:
         return e
     name = "trace_engine" if m.group(1, 2) == ("TraceConfig", "engine") else m.group(2)
+    if (
+        m.group(1) == "BakeConfig" and f"bake_{name}" in RUNNER_KEYS
+    ):  # --bake-noise-target, not --noise-target
+        name = f"bake_{name}"
     if name not in RUNNER_KEYS:
         return e
     return ConfigError(f"--{name.replace('_', '-')}: {e}")
@@ -211,6 +277,7 @@ def bake_config(args: argparse.Namespace):
     opt = resolved_options(args)
     values = bake_values(ExperimentConfig())
     values |= {"radiance_res": opt["radiance_res"], "geometry_res": opt["geometry_res"]}
+    values |= {"noise_target": opt["bake_noise_target"], "max_spp": opt["bake_max_spp"]}
     try:
         return BakeConfig(**values)
     except ConfigError as e:
@@ -255,9 +322,7 @@ def _checked_inputs(args: argparse.Namespace):
         bake_cfg = None
     else:
         bake_cfg = bake_config(args)
-        bake_spp = resolved_options(args)["bake_spp"]
-        if isinstance(bake_spp, bool) or bake_spp < 1:
-            raise ConfigError(f"--bake-spp must be a positive integer, got {bake_spp}")
+        check_count(resolved_options(args)["bake_spp"], "--bake-spp")
         probes, meta = load_probe_set(path)
         _check_recorded_scene(meta, path, args.scene)
     if not bool(np.asarray(probes.active).any()):
@@ -332,12 +397,13 @@ class _Stages:
 
         self.on = _progress._enabled
         self.t0 = time.perf_counter()
+        auto = f"auto (noise target {config.noise_target:g}, pilot {config.pilot_spp})"
         self.fields = {
             "w": config.width,
             "h": config.height,
-            "spp": config.spp,
+            "spp": auto if is_auto(config.spp) else config.spp,
             "gspp": config.glossy_spp,
-            "gref": config.glossy_ref_spp,
+            "gref": auto if is_auto(config.glossy_ref_spp) else config.glossy_ref_spp,
             "engine": config.trace.engine,
             "rep": config.timing_repeats,
         }
@@ -354,7 +420,14 @@ def run(args: argparse.Namespace) -> int:
 
     from .evaluate import evaluate, write_evaluation
     from .geometry import make_caster
-    from .probes import bake_depth_for, bake_probes, pad_probes, path_traced_radiance, save_probes
+    from .probes import (
+        bake_depth_for,
+        bake_probes,
+        choose_bake_spp,
+        pad_probes,
+        path_traced_radiance,
+        save_probes,
+    )
     from .scene import load_scene, scene_overrides_from_args
 
     overrides = scene_overrides_from_args(args)  # a bad --sun/--sky/--camera fails before any work
@@ -373,31 +446,35 @@ def run(args: argparse.Namespace) -> int:
     opt = resolved_options(args)
     # the runner's keys: the bake's and the evaluation's split from the seed (experiment._run._execute)
     k_bake, k_eval = jax.random.split(jax.random.key(opt["seed"]))
+    samples = None
     if path.suffix == ".npz":
         lf = probes
     else:
         backend = config.backend  # --backend (or the runner's) for the bake too
         n = int(np.asarray(probes.active).sum())
-        res = bake_cfg.radiance_res
-        say(f"bake: {n} probes, {res}² radiance maps, {opt['bake_spp']} paths per texel ray ({backend})")
-        lf = bake_probes(
+        res, spp = bake_cfg.radiance_res, opt["bake_spp"]
+        say(f"bake: {n} probes, {res}² radiance maps, {spp} paths per texel ray ({backend})")
+        probes = pad_probes(probes)  # as the runner (bake.pad_pow2): a few probe counts, compiled once each
+        radiance_fn = path_traced_radiance(
             scene,
-            pad_probes(probes),  # as the runner (bake.pad_pow2): a few probe counts, compiled once each
-            caster=caster,
-            radiance_fn=path_traced_radiance(
-                scene,
-                spp=opt["bake_spp"],
-                max_depth=bake_depth_for(config.max_depth),
-                caster=caster if backend == "jax" else None,
-                backend=backend,
-            ),
-            key=k_bake,
-            config=bake_cfg,
+            spp=bake_cfg.pilot_spp if is_auto(spp) else spp,
+            max_depth=bake_depth_for(config.max_depth),
+            caster=caster if backend == "jax" else None,
+            backend=backend,
         )
+        samples = choose_bake_spp(
+            scene, probes, radiance_fn=radiance_fn, key=k_bake, config=bake_cfg, spp=spp
+        )
+        if samples.chosen_by == "target":
+            say(f"bake: {samples.spp} paths per texel ray chosen (bake_samples in metrics.json)")
+            radiance_fn = dataclasses.replace(radiance_fn, spp=samples.spp)
+        lf = bake_probes(scene, probes, caster=caster, radiance_fn=radiance_fn, key=k_bake, config=bake_cfg)
         if args.save_baked:
             say(f"writing {args.save_baked}")
             save_probes(args.save_baked, lf)
     result = evaluate(scene, lf, view=view, config=config, caster=caster, key=k_eval, stage=say)
+    if samples is not None:  # how the bake's paths were chosen, beside the reference's ``samples``
+        result = dataclasses.replace(result, metrics={**result.metrics, "bake_samples": samples.to_dict()})
     say(f"writing {args.out}")
     paths = write_evaluation(result, args.out)
     m = result.metrics

@@ -47,6 +47,17 @@ def test_defaults_are_the_runners_field_by_field(tmp_path):
     assert cli_ev.trace.engine == "wavefront"  # both run the wavefront light-field tracer
 
 
+def test_noise_target_options_reach_the_library_configs(tmp_path):
+    """Issue 33: ``auto`` counts and their targets and caps reach the evaluation and bake settings."""
+    extra = ["--spp", "auto", "--glossy-ref-spp", "auto", "--noise-target", "0.1", "--max-spp", "64"]
+    extra += ["--bake-spp", "auto", "--bake-noise-target", "0.2", "--bake-max-spp", "32"]
+    args = _args(tmp_path, *extra)
+    ev, bake = eval_config(args), bake_config(args)
+    assert (ev.spp, ev.glossy_ref_spp, ev.noise_target, ev.max_spp) == ("auto", "auto", 0.1, 64)
+    assert (bake.noise_target, bake.max_spp) == (0.2, 32)
+    assert resolved_options(args)["bake_spp"] == "auto"
+
+
 def test_options_reach_the_library_configs(tmp_path):
     extra = ["--trace-engine", "per_ray", "--timing-repeats", "1", "--glossy-ref-spp", "6", "--spp", "3"]
     extra += ["--max-depth", "5", "--hierarchy", "flat", "--radiance-res", "8", "--geometry-res", "32"]
@@ -81,7 +92,7 @@ def test_the_run_gets_the_runners_settings_and_keys(tmp_path, capsys, no_slow_wo
         raise Stop
 
     monkeypatch.setattr(probeplace.geometry, "make_caster", lambda *a, **k: None)
-    monkeypatch.setattr(probeplace.probes, "path_traced_radiance", lambda *a, **k: None)
+    monkeypatch.setattr(probeplace.probes, "path_traced_radiance", lambda *a, **k: lambda o, d, k: None)
     monkeypatch.setattr(probeplace.probes, "bake_probes", bake)
     monkeypatch.setattr(probeplace.evaluate, "evaluate", evaluate)
     probes = probe_json(tmp_path / "p.json")
@@ -104,9 +115,34 @@ def test_the_run_gets_the_runners_settings_and_keys(tmp_path, capsys, no_slow_wo
         (["--trace-engine", "fast"], "--trace-engine: TraceConfig.engine must be one of"),
         (["--timing-repeats", "0"], "--timing-repeats: EvalConfig.timing_repeats must be a positive int"),
         (["--glossy-ref-spp", "1"], "--glossy-ref-spp: EvalConfig.glossy_ref_spp must be an int ≥ 2"),
-        (["--bake-spp", "0"], "--bake-spp must be a positive integer, got 0"),
+        (["--bake-spp", "0"], "--bake-spp must be a positive int or 'auto', got 0"),
+        # issue 33, samples from a noise target
+        (["--spp", "autox"], "--spp: EvalConfig.spp must be a positive int or 'auto', got 'autox'"),
+        (["--glossy-ref-spp", "1.5"], "--glossy-ref-spp: EvalConfig.glossy_ref_spp must be an int ≥ 2 or"),
+        (
+            ["--noise-target", "0"],
+            "--noise-target: EvalConfig.noise_target must be a number in (0, 1), got 0",
+        ),
+        (["--noise-target", "1"], "--noise-target: EvalConfig.noise_target must be a number in (0, 1)"),
+        (["--spp", "auto", "--max-spp", "4"], "--max-spp: EvalConfig.max_spp must be ≥ pilot_spp (8)"),
+        (["--bake-spp", "autox"], "--bake-spp must be a positive int or 'auto', got 'autox'"),
+        (["--bake-noise-target", "1.5"], "--bake-noise-target: BakeConfig.noise_target must be a number in"),
+        (["--bake-max-spp", "0"], "--bake-max-spp: BakeConfig.max_spp must be an int ≥ 1, got 0"),
     ],
-    ids=["trace-engine", "timing-repeats", "glossy-ref-spp", "bake-spp"],
+    ids=[
+        "trace-engine",
+        "timing-repeats",
+        "glossy-ref-spp",
+        "bake-spp",
+        "spp-autox",
+        "glossy-ref-spp-float",
+        "noise-target-0",
+        "noise-target-1",
+        "max-spp-below-pilot",
+        "bake-spp-autox",
+        "bake-noise-target",
+        "bake-max-spp",
+    ],
 )
 def test_bad_values_are_refused_in_one_line(tmp_path, capsys, no_slow_work, extra, needle):
     probes = probe_json(tmp_path / "p.json")

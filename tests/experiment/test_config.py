@@ -128,6 +128,20 @@ BAD = [
     ({"bake": {"res": 8}}, "bake.res"),
     ({"colour": "red"}, "colour"),
     ({"eval": {"width": "wide"}}, "eval.width"),
+    # issue 33: counts chosen from a noise target
+    ({"tracer": {"spp": "autox"}}, "tracer.spp: must be a positive int or 'auto', got 'autox'"),
+    ({"tracer": {"spp": 2.5}}, "tracer.spp: must be an integer or a string, got 2.5"),
+    ({"tracer": {"noise_target": 0.0}}, "tracer.noise_target: must be a number in (0, 1), got 0.0"),
+    ({"tracer": {"noise_target": 1.0}}, "tracer.noise_target: must be a number in (0, 1), got 1.0"),
+    ({"tracer": {"pilot_spp": 1}}, "tracer.pilot_spp: must be an int >= 2, got 1"),
+    ({"tracer": {"spp": "auto", "max_spp": 4}}, "tracer.max_spp: must be >= pilot_spp (8)"),
+    (
+        {"eval": {"glossy_ref_spp": "autox"}},
+        "eval.glossy_ref_spp: must be an int >= 2 or 'auto', got 'autox'",
+    ),
+    ({"bake": {"spp": "autox"}}, "bake.spp: must be a positive int or 'auto', got 'autox'"),
+    ({"bake": {"noise_target": -0.1}}, "bake.noise_target: must be a number in (0, 1), got -0.1"),
+    ({"bake": {"max_spp": 0}}, "bake.max_spp: must be an int >= 1, got 0"),
 ]
 
 
@@ -139,6 +153,31 @@ def test_invalid_values_and_unknown_keys_name_the_key(override, key, tmp_path):
     with pytest.raises(ConfigError, match=re.escape(key)):
         run({**override, "results_dir": str(tmp_path)})
     assert not any(tmp_path.iterdir())
+
+
+def test_counts_take_auto_and_their_targets():
+    """Issue 33: ``tracer.spp``, ``eval.glossy_ref_spp`` and ``bake.spp`` take ``auto`` (from a dict and as
+    Hydra overrides), numeric text stays a count, and the targets reach the library configs."""
+    from probeplace.experiment import bake_config, eval_config
+
+    over = ["tracer.spp=auto", "eval.glossy_ref_spp=auto", "bake.spp=auto", "tracer.noise_target=0.1"]
+    over += ["tracer.max_spp=64", "bake.noise_target=0.2", "bake.max_spp=32", "bake.pilot_spp=2"]
+    cfg = to_config(compose(over))
+    assert (cfg.tracer.spp, cfg.eval.glossy_ref_spp, cfg.bake.spp) == ("auto", "auto", "auto")
+    ev, bake = eval_config(cfg), bake_config(cfg)
+    assert (ev.spp, ev.glossy_ref_spp, ev.noise_target, ev.max_spp, ev.pilot_spp) == (
+        "auto",
+        "auto",
+        0.1,
+        64,
+        8,
+    )
+    assert (bake.noise_target, bake.max_spp, bake.pilot_spp) == (0.2, 32, 2)
+    assert to_config({"tracer": {"spp": "32"}, "bake": {"spp": "8"}}).tracer.spp == 32
+    assert to_config({"bake": {"spp": "8"}}).bake.spp == 8
+    # the defaults stay fixed counts
+    d = to_config({})
+    assert (d.tracer.spp, d.eval.glossy_ref_spp, d.bake.spp) == (16, 4, 4)
 
 
 def test_hydra_rejects_unknown_override_naming_it():

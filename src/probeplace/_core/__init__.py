@@ -14,6 +14,11 @@ from ._errors import ProbeplaceError as ProbeplaceError
 from ._errors import ResourceError as ResourceError
 from ._errors import SceneError as SceneError
 from ._lazy import lazy_exports
+from ._samples import AUTO as AUTO  # plain Python, like the errors
+from ._samples import check_count as check_count
+from ._samples import check_target as check_target
+from ._samples import is_auto as is_auto
+from ._samples import smallest_count as smallest_count
 
 # name -> the private module defining it (all but _io and _plotting import JAX)
 _LAZY = {
@@ -29,7 +34,9 @@ _LAZY = {
         ),
         "_io",
     ),
-    **dict.fromkeys(("luminance", "next_pow2", "safe_norm", "safe_normalize", "safe_sqrt"), "_math"),
+    **dict.fromkeys(
+        ("dot3", "luminance", "next_pow2", "norm3", "safe_norm", "safe_normalize", "safe_sqrt"), "_math"
+    ),
     **dict.fromkeys(
         (
             "add_border",
@@ -67,7 +74,18 @@ _LAZY = {
         "_types",
     ),
 }
-__all__ = ["ConfigError", "ProbeplaceError", "ResourceError", "SceneError", *_LAZY]
+__all__ = [
+    "AUTO",
+    "ConfigError",
+    "ProbeplaceError",
+    "ResourceError",
+    "SceneError",
+    "check_count",
+    "check_target",
+    "is_auto",
+    "smallest_count",
+    *_LAZY,
+]
 
 if TYPE_CHECKING:  # what static checkers and IDEs see; __getattr__ gives the same at run time
     from ._io import atomic_path as atomic_path
@@ -77,8 +95,10 @@ if TYPE_CHECKING:  # what static checkers and IDEs see; __getattr__ gives the sa
     from ._io import write_exr as write_exr
     from ._io import write_json_atomic as write_json_atomic
     from ._io import write_text_atomic as write_text_atomic
+    from ._math import dot3 as dot3
     from ._math import luminance as luminance
     from ._math import next_pow2 as next_pow2
+    from ._math import norm3 as norm3
     from ._math import safe_norm as safe_norm
     from ._math import safe_normalize as safe_normalize
     from ._math import safe_sqrt as safe_sqrt

@@ -5,7 +5,7 @@ from __future__ import annotations
 import dataclasses
 import math
 
-from .._core import ConfigError
+from .._core import ConfigError, check_count, check_target, is_auto
 from ..probes._glossy import DEFAULT_GLOSSY_FILTER, GLOSSY_FILTERS
 from ..probes._shade import SHADINGS
 from ..probes._trace import TraceConfig
@@ -18,9 +18,18 @@ class EvalConfig:
 
     Attributes:
         width, height: image size.
-        spp: reference paths per pixel (the render of every component).
+        spp: reference paths per pixel (the render of every component), or ``"auto"``: the fewest whose
+            diffuse-indirect noise floor is at most ``noise_target`` × that component's black-image MSE,
+            from a pilot render (``evaluate._samples``).
         glossy_spp: primary samples per pixel for the probe image, each with one GGX direction (CRN).
-        glossy_ref_spp: paths per GGX direction for the CRN reference (≥ 2, for its variance).
+        glossy_ref_spp: paths per GGX direction for the CRN reference (≥ 2, for its variance), or
+            ``"auto"``: the fewest whose glossy-indirect noise floor meets ``noise_target`` likewise.
+        noise_target: the reference noise floor a chosen count aims at, as a fraction of the scored
+            component's black-image MSE (0.05: the floor is 5 % of it), in (0, 1).
+        pilot_spp: paths per pixel (per GGX direction) of the pilot passes of an ``"auto"`` count (≥ 2:
+            the floor is a sample variance).
+        max_spp: the most paths per pixel (per GGX direction) an ``"auto"`` count may reach; a run that
+            needs more proceeds at the cap and says ``target_met: false``.
         max_depth: longest path in segments (≥ 3: indirect light needs two bounces).
         shading: diffuse method, ``"lightfield"`` | ``"irradiance"`` | ``"sh"``.
         trace: light-field tracer settings (glossy rays).
@@ -53,9 +62,12 @@ class EvalConfig:
 
     width: int = 64
     height: int = 64
-    spp: int = 64
+    spp: int | str = 64
     glossy_spp: int = 8
-    glossy_ref_spp: int = 4
+    glossy_ref_spp: int | str = 4
+    noise_target: float = 0.05
+    pilot_spp: int = 8
+    max_spp: int = 1024
     max_depth: int = 8
     shading: str = "lightfield"
     trace: TraceConfig = dataclasses.field(default_factory=TraceConfig)
@@ -73,12 +85,19 @@ class EvalConfig:
     backend: str = "jax"
 
     def __post_init__(self):
-        for name in ("width", "height", "spp", "glossy_spp", "timing_repeats", "bootstrap_resamples"):
+        for name in ("width", "height", "glossy_spp", "timing_repeats", "bootstrap_resamples"):
             v = getattr(self, name)
             if not isinstance(v, int) or isinstance(v, bool) or v < 1:
                 raise ConfigError(f"EvalConfig.{name} must be a positive int, got {v!r}")
-        if not isinstance(self.glossy_ref_spp, int) or self.glossy_ref_spp < 2:
-            raise ConfigError(f"EvalConfig.glossy_ref_spp must be an int ≥ 2, got {self.glossy_ref_spp!r}")
+        check_count(self.spp, "EvalConfig.spp")
+        check_count(self.glossy_ref_spp, "EvalConfig.glossy_ref_spp", minimum=2)
+        check_target(
+            "EvalConfig",
+            noise_target=self.noise_target,
+            pilot_spp=self.pilot_spp,
+            max_spp=self.max_spp,
+            min_pilot=2,
+        )
         if not isinstance(self.max_depth, int) or self.max_depth < 3:
             raise ConfigError(f"EvalConfig.max_depth must be an int ≥ 3, got {self.max_depth!r}")
         from ..render import resolve_backend
@@ -108,14 +127,15 @@ class EvalConfig:
 
 def check_eval_memory(config, what: str) -> None:
     """Refuse an evaluation whose reference render would not fit in memory, before anything is loaded
-    (the renderer's own estimate, ``_core._checks.check_image_memory``)."""
+    (the renderer's own estimate, ``_core._checks.check_image_memory``); an ``"auto"`` count is checked at
+    its cap ``max_spp``, the most it may render."""
     from .._core._checks import check_image_memory
     from ..render import COMPONENTS, RenderConfig
 
     check_image_memory(
         config.width,
         config.height,
-        config.spp,
+        config.max_spp if is_auto(config.spp) else config.spp,
         components=len(COMPONENTS),
         paths_per_batch=RenderConfig.paths_per_batch,
         what=what,

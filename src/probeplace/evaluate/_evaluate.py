@@ -4,6 +4,9 @@ Protocol (docs/evaluate.md):
 
 * **Reference**: the path tracer (``render.render``) at ``spp`` paths per pixel gives every component
   (emission, direct, diffuse indirect, glossy indirect, full) and its per-pixel variance of the mean.
+* **Sample counts** ``spp`` and ``glossy_ref_spp`` are fixed ints or ``"auto"``: chosen from a pilot pass
+  so that the scored component's noise floor is at most ``noise_target`` × its black-image MSE
+  (``_samples.py``); ``samples`` in the metrics says how, and whether the final pass met the target.
 * **Primary hits** are exact (the caster), ``glossy_spp`` per pixel, with the reference's own camera
   jitter for pixel sample s (``path_uniforms(seed, pixel, s, 0)``): the probe image sees the same points.
 * **Glossy indirect, common random numbers.** For pixel sample s, one GGX visible-normal direction
@@ -46,12 +49,13 @@ The steps are public (``_steps.py``): ``render_reference``, ``sample_primary``, 
 from __future__ import annotations
 
 import dataclasses
+import logging
 
 import jax
 import jax.numpy as jnp
 import numpy as np
 
-from .._core import ConfigError, LightFieldProbes, Scene, scene_box
+from .._core import ConfigError, LightFieldProbes, Scene, is_auto, scene_box
 from ..probes import tracer_bytes
 from ..probes._bake import check_bake_settings
 from ..probes._glossy import glossy_maps
@@ -67,18 +71,19 @@ from ._decompose import (
     pixel_means,
     relative_mse,
 )
+from ._samples import COUNT_OF, CountChoice, crn_for_target, reference_for_target, samples_metrics
 from ._steps import (
     CrnReference,
     PerfectTrace,
     PrimarySamples,
     ProbeShading,
     ReferenceImages,
-    crn_reference,
     perfect_trace,
-    render_reference,
     sample_primary,
     shade_probes,
 )
+
+log = logging.getLogger(__name__)
 
 EVAL_COMPONENTS = ("diffuse_indirect", "glossy_indirect", "full")
 #: The result's images (:func:`_eval_images`), in order: references, probe images, their errors.
@@ -173,18 +178,21 @@ def evaluate(
     stage = stage or (lambda name: None)
 
     stage("reference")
-    ref = render_reference(scene, camera, config, seed=seed, caster=caster)
+    ref, ref_count = reference_for_target(scene, camera, config, seed=seed, caster=caster)
     stage("primary")
     prim = sample_primary(scene, camera, config, seed=seed, caster=caster)
     stage("crn")
-    crn = crn_reference(scene, prim, config, seed=seed, caster=caster)
+    crn, crn_count = crn_for_target(scene, prim, config, seed=seed, caster=caster)
+    # from here on the counts are the ones rendered (metrics: spp, glossy_ref_spp)
+    config = dataclasses.replace(config, spp=ref_count.spp, glossy_ref_spp=crn_count.spp)
     stage("shading")
     maps = glossy_maps(lf, config.glossy_filter, include_emission=False)  # built once, like a bake
     shading = shade_probes(scene, lf, prim, config, maps=maps)
     stage("perfect_trace")
     perfect = perfect_trace(lf, prim, config, caster=caster, maps=maps)
     stage("score")
-    return score(scene, lf, view, config, seed, ref, prim, crn, shading, perfect)
+    counts = {"diffuse_indirect": ref_count, "glossy_indirect": crn_count}
+    return score(scene, lf, view, config, seed, ref, prim, crn, shading, perfect, counts=counts)
 
 
 def _light_leak(ref_img: dict, ref_var: dict, probe_d, hit_px, sigmas: float) -> dict:
@@ -299,8 +307,16 @@ def score(
     crn: CrnReference,
     shading: ProbeShading,
     perfect: PerfectTrace,
+    *,
+    counts: dict[str, CountChoice] | None = None,
 ) -> EvalResult:
-    """Images and metrics (docs/evaluate.md) from the steps' results."""
+    """Images and metrics (docs/evaluate.md) from the steps' results. ``counts``: how the reference's
+    counts were chosen (``evaluate`` passes them; ``None``: the fixed counts of ``config``), for the
+    ``samples`` group."""
+    if counts is None:
+        if is_auto(config.spp) or is_auto(config.glossy_ref_spp):
+            raise ConfigError("score: config's counts are 'auto'; pass the counts the steps rendered with")
+        counts = {c: CountChoice(spp=getattr(config, k), chosen_by="fixed") for c, k in COUNT_OF.items()}
     W, H, S = prim.width, prim.height, prim.spp
     ref_img, ref_var = ref.images, ref.variance
     w_gl = prim.w_glossy
@@ -350,4 +366,13 @@ def score(
         "reference_s": ref.seconds,
         "memory_bytes": memory_bytes(lf, config.trace.subdivide),
     }
+    metrics["samples"] = samples_metrics(config, counts, metrics)
+    chosen = any(c.chosen_by == "target" for c in counts.values())
+    if chosen and not metrics["samples"]["target_met"]:  # fixed counts were asked for: no warning
+        ratios = ", ".join(f"{c} {v:.3g}" for c, v in metrics["samples"]["floor_over_black"].items())
+        log.warning(
+            "reference noise floor ÷ black MSE: %s; above the noise target %g (metrics.json: samples)",
+            ratios,
+            config.noise_target,
+        )
     return EvalResult(metrics=metrics, images=images)

@@ -481,32 +481,53 @@ def _place_stage(cfg: ExperimentConfig, scene, translation, partial: Path, final
 
 def _bake_stage(cfg: ExperimentConfig, scene, probes, key, partial: Path, timings, metrics):
     """Bake (timed) with the reference path tracer, write ``probes_baked.npz``, record the bake's
-    settings and memory; returns the baked probes and the exact caster (the evaluation's too)."""
+    settings, how its paths per texel ray were chosen (``bake_samples``; an ``"auto"`` count's pilot is
+    timed with the bake) and memory; returns the baked probes and the exact caster (the evaluation's too).
+    """
+    import dataclasses
+
     import jax
 
-    from ..probes import bake_depth_for, bake_probes, pad_probes, path_traced_radiance, save_probes
+    from .._core import is_auto
+    from ..probes import (
+        bake_depth_for,
+        bake_probes,
+        choose_bake_spp,
+        pad_probes,
+        path_traced_radiance,
+        save_probes,
+    )
     from ..render import default_caster, resolve_backend
 
     caster = default_caster(scene)
     backend = resolve_backend(cfg.bake.backend)
     mitsuba = backend == "mitsuba"
+    config = bake_config(cfg)
+    radiance_fn = path_traced_radiance(
+        scene,
+        spp=config.pilot_spp if is_auto(cfg.bake.spp) else cfg.bake.spp,
+        # one depth rule for bake, reference and evaluation: a texel replaces the rest of a camera path
+        max_depth=bake_depth_for(cfg.tracer.max_depth),
+        caster=None if mitsuba else caster,  # Mitsuba casts its own rays (Embree)
+        backend=backend,
+    )
     with _timed(timings, "bake", drjit=mitsuba):
+        probes = pad_probes(probes) if cfg.bake.pad_pow2 else probes
+        samples = choose_bake_spp(
+            scene, probes, radiance_fn=radiance_fn, key=key, config=config, spp=cfg.bake.spp
+        )
         lf = bake_probes(
             scene,
-            pad_probes(probes) if cfg.bake.pad_pow2 else probes,
+            probes,
             caster=caster,  # texel-centre geometry rays and the inside test, whatever the backend
-            # one depth rule for bake, reference and evaluation: a texel replaces the rest of a camera path
-            radiance_fn=path_traced_radiance(
-                scene,
-                spp=cfg.bake.spp,
-                max_depth=bake_depth_for(cfg.tracer.max_depth),
-                caster=None if mitsuba else caster,  # Mitsuba casts its own rays (Embree)
-                backend=backend,
-            ),
+            radiance_fn=radiance_fn
+            if samples.chosen_by == "fixed"
+            else dataclasses.replace(radiance_fn, spp=samples.spp),
             key=key,
-            config=bake_config(cfg),
+            config=config,
         )
         jax.block_until_ready(lf)
+    metrics["bake_samples"] = samples.to_dict()
     save_probes(partial / "probes_baked.npz", lf)
     metrics["inside_bake"] = int((np.asarray(lf.inside) & np.asarray(lf.active)).sum())
     # the settings stored with the probes (backend included), plus the geometry maps' resolution

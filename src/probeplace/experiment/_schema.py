@@ -23,7 +23,7 @@ from collections.abc import Mapping
 from dataclasses import dataclass, field
 from typing import Any
 
-from .._core import ConfigError
+from .._core import ConfigError, check_count, is_auto
 from ..evaluate import EvalConfig as _LibEvalConfig
 from ..probes import BakeConfig as _LibBakeConfig
 from ..probes import TraceConfig as _LibTraceConfig
@@ -92,11 +92,13 @@ _SCALARS = (bool, int, float, str)
 
 
 def _is_scalar(tp: Any) -> bool:
-    """A type a config key may have: a scalar or ``scalar | None`` (nested settings stay library-only)."""
+    """A type a config key may have: a scalar, a union of scalars (``int | str``: a count or ``"auto"``)
+    or either ``| None`` (nested settings stay library-only)."""
     if tp in _SCALARS:
         return True
     args = [a for a in typing.get_args(tp) if a is not type(None)]
-    return typing.get_origin(tp) in (typing.Union, types.UnionType) and len(args) == 1 and args[0] in _SCALARS
+    union = typing.get_origin(tp) in (typing.Union, types.UnionType)
+    return union and bool(args) and all(a in _SCALARS for a in args)
 
 
 def _stage_schema(name: str, doc: str, lib: type, *, head: list, tail: list, runner_set: set, defaults: dict):
@@ -126,7 +128,10 @@ BakeStage = _stage_schema(
 
     Attributes:
         enabled: bake at all (the stability study only needs placements).
-        spp: paths per bake ray (``probes.path_traced_radiance``; checked as ``render.RenderConfig.spp``).
+        spp: paths per bake ray (``probes.path_traced_radiance``; checked as ``render.RenderConfig.spp``),
+            or ``"auto"``: chosen by a pilot for the radiance maps' relative noise ``noise_target``, from
+            ``pilot_spp`` up to ``max_spp`` (``probes.choose_bake_spp``; ``metrics.json``'s
+            ``bake_samples``).
         pad_pow2: pad the baked set with inactive probes to a power-of-two capacity (8 to 64; beyond, a
             multiple of 64: ``probes.pad_probes``), so the runs of a sweep share compiled bake / shading
             code; inactive probes are masked out, the results do not change. ``probeplace evaluate``
@@ -142,7 +147,7 @@ BakeStage = _stage_schema(
     _LibBakeConfig,
     head=[("enabled", bool, field(default=True))],
     tail=[
-        ("spp", int, field(default=4)),
+        ("spp", int | str, field(default=4)),
         ("pad_pow2", bool, field(default=True)),
         ("backend", str, field(default="jax")),
     ],
@@ -151,27 +156,44 @@ BakeStage = _stage_schema(
 )
 
 
+_EVAL_DEFAULTS = {f.name: f.default for f in dataclasses.fields(_LibEvalConfig)}
+
+
 @dataclass
 class TracerConfig:
     """The reference path tracer of the evaluation (reference image and common random numbers).
 
     Attributes:
-        spp: paths per pixel (``evaluate.EvalConfig.spp``).
+        spp: paths per pixel (``evaluate.EvalConfig.spp``), or ``"auto"``: chosen by a pilot render so that
+            the diffuse indirect's noise floor is at most ``noise_target`` × its black-image MSE
+            (``evaluate._samples``; ``eval.glossy_ref_spp: auto`` does the same for the glossy CRN
+            reference).
         max_depth: camera path depth in segments (``evaluate.EvalConfig.max_depth``); the bake traces
             ``max_depth − 1`` segments from each probe (``probes.bake_depth_for``).
+        noise_target: the reference noise floor an ``"auto"`` count aims at, as a fraction of the black
+            image's MSE (``evaluate.EvalConfig.noise_target``).
+        pilot_spp: paths of the pilot passes of an ``"auto"`` count (``evaluate.EvalConfig.pilot_spp``).
+        max_spp: the cap of an ``"auto"`` count (``evaluate.EvalConfig.max_spp``).
     """
 
-    spp: int = 16
+    spp: int | str = 16
     max_depth: int = 4
+    noise_target: float = _EVAL_DEFAULTS["noise_target"]
+    pilot_spp: int = _EVAL_DEFAULTS["pilot_spp"]
+    max_spp: int = _EVAL_DEFAULTS["max_spp"]
 
+
+#: The ``tracer`` keys that are ``evaluate.EvalConfig`` fields of the same name, beside ``spp`` and
+#: ``max_depth``: how an ``"auto"`` count is chosen.
+_TRACER_KEYS = ("noise_target", "pilot_spp", "max_spp")
 
 EvalStage = _stage_schema(
     "EvalStage",
     """Evaluation against the path-traced reference (``probeplace.evaluate``).
 
     Every scalar field of ``evaluate.EvalConfig`` is a key, with its meaning and checks, but those the
-    runner sets: ``spp`` and ``max_depth`` (the ``tracer`` group), ``progress`` (the run's) and ``seed``
-    (the run's key). The runner's own:
+    runner sets: ``spp``, ``max_depth`` and the noise target's ``noise_target``, ``pilot_spp``, ``max_spp``
+    (the ``tracer`` group), ``progress`` (the run's) and ``seed`` (the run's key). The runner's own:
 
     Attributes:
         enabled: evaluate at all.
@@ -183,7 +205,7 @@ EvalStage = _stage_schema(
     _LibEvalConfig,
     head=[("enabled", bool, field(default=True)), ("view", str, field(default="front"))],
     tail=[("trace_engine", str, field(default="wavefront"))],
-    runner_set={"spp", "max_depth", "progress", "seed"},
+    runner_set={"spp", "max_depth", "progress", "seed", *_TRACER_KEYS},
     defaults={},
 )
 # The names of the groups before they were built from the library settings.
@@ -269,6 +291,7 @@ def eval_values(cfg: ExperimentConfig) -> dict:
         **_library_values(cfg.eval, _LibEvalConfig),
         "spp": cfg.tracer.spp,
         "max_depth": cfg.tracer.max_depth,
+        **{k: getattr(cfg.tracer, k) for k in _TRACER_KEYS},
         "progress": cfg.progress,
     }
 
@@ -283,7 +306,8 @@ def eval_config(cfg: ExperimentConfig) -> _LibEvalConfig:
     """The library's evaluation settings of a run (``evaluate.EvalConfig``): the ``eval`` group, the
     tracer's samples and depth, the run's ``progress``."""
     values = eval_values(cfg)
-    keys = {**{k: f"eval.{k}" for k in values}, "spp": "tracer.spp", "max_depth": "tracer.max_depth"}
+    keys = {k: f"eval.{k}" for k in values}
+    keys |= {k: f"tracer.{k}" for k in ("spp", "max_depth", *_TRACER_KEYS)}
     try:
         values["trace"] = _LibTraceConfig(engine=cfg.eval.trace_engine)
     except ConfigError as e:
@@ -293,8 +317,14 @@ def eval_config(cfg: ExperimentConfig) -> _LibEvalConfig:
 
 def _check_bake_tracer(cfg: ExperimentConfig) -> None:
     """The bake's path tracer settings, checked where the renderer checks them (``RenderConfig``; the
-    image size is a placeholder, a bake has none)."""
-    values = {"width": 1, "height": 1, "spp": cfg.bake.spp, "backend": cfg.bake.backend}
+    image size is a placeholder, a bake has none); ``spp`` may also be ``"auto"`` (``probes.choose_bake_spp``
+    checks it, and ``BakeConfig`` its pilot and cap)."""
+    try:
+        check_count(cfg.bake.spp, "bake.spp")
+    except ConfigError as e:
+        raise ConfigError(str(e).replace("bake.spp must", "bake.spp: must", 1)) from None
+    spp = 1 if is_auto(cfg.bake.spp) else cfg.bake.spp
+    values = {"width": 1, "height": 1, "spp": spp, "backend": cfg.bake.backend}
     _rekeyed(_LibRenderConfig, values, {"spp": "bake.spp", "backend": "bake.backend"})
 
 

@@ -42,8 +42,9 @@ def from_mapping(cls: type, data: Mapping, key: str = "") -> Any:
 
 
 def convert(tp: Any, v: Any, key: str) -> Any:
-    """``v`` as type ``tp`` (bool, int, float, str, ``X | None``, ``list[X]``, ``dict[str, X]``, ``Any``
-    or a dataclass); containers become plain lists and dicts."""
+    """``v`` as type ``tp`` (bool, int, float, str, ``X | None``, a union of those scalars such as
+    ``int | str``, ``list[X]``, ``dict[str, X]``, ``Any`` or a dataclass); containers become plain lists
+    and dicts."""
     if tp is Any:
         return plain(v)
     if dataclasses.is_dataclass(tp):
@@ -52,8 +53,10 @@ def convert(tp: Any, v: Any, key: str) -> Any:
     if origin in (typing.Union, types.UnionType):
         if v is None and type(None) in args:
             return None
-        (inner,) = [a for a in args if a is not type(None)]  # the schemas only use ``X | None``
-        return convert(inner, v, key)
+        inner = [a for a in args if a is not type(None)]
+        if len(inner) == 1:
+            return convert(inner[0], v, key)
+        return _scalar_union(inner, v, key)
     if origin is list:
         if isinstance(v, str) or not isinstance(v, Sequence):
             _fail(key, "must be a list", v)
@@ -88,6 +91,21 @@ def _scalar(tp: type, v: Any, key: str) -> Any:
             return str(v)
         _fail(key, "must be a string", v)
     raise TypeError(f"{key}: unsupported schema type {tp!r}")  # a schema bug, not a user error
+
+
+def _scalar_union(types_: list, v: Any, key: str) -> Any:
+    """``v`` as the first of the scalar types ``types_`` it converts to, ``str`` only for text (a count
+    field ``int | str`` takes ``16``, ``"16"`` and ``"auto"``, not ``2.5``); the library checks which text
+    it accepts."""
+    for tp in types_:
+        if tp is str and not isinstance(v, str):
+            continue
+        try:
+            return _scalar(tp, v, key)
+        except ConfigError:
+            continue
+    names = {bool: "a boolean", int: "an integer", float: "a number", str: "a string"}
+    _fail(key, "must be " + " or ".join(names.get(t, str(t)) for t in types_), v)
 
 
 def plain(v: Any) -> Any:

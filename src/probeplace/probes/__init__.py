@@ -14,6 +14,8 @@ from ._bake import pad_probes as pad_probes
 from ._bake import padded_capacity as padded_capacity
 from ._bake import path_traced_radiance as path_traced_radiance
 from ._bake import probe_bytes as probe_bytes
+from ._bake_samples import BakeSamples as BakeSamples
+from ._bake_samples import choose_bake_spp as choose_bake_spp
 from ._filter import distance_moments as distance_moments
 from ._filter import irradiance_map as irradiance_map
 from ._filter import mip_chains as mip_chains

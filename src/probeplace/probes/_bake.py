@@ -65,6 +65,7 @@ from .._core import (
     Scene,
     SceneError,
     add_border,
+    check_target,
     jittered_texel_directions,
     next_pow2,
     scene_box,
@@ -252,6 +253,11 @@ class BakeConfig:
             but the winding tells a room from a solid).
         probes_per_batch: probes traced at once (memory ≈ probes × res² × n_sub² × 200 bytes).
         quality: scales the derived radiance resolution.
+        noise_target: when the bake's paths per texel ray are chosen (``spp="auto"``,
+            :func:`choose_bake_spp`): the relative noise of the radiance maps to reach, the RMS seed-to-seed
+            difference of a texel over the RMS radiance (0.05: 5 %).
+        pilot_spp: paths per texel ray of the pilot bakes that measure the noise (``spp="auto"``).
+        max_spp: the most paths per texel ray a chosen count may reach (``spp="auto"``).
         progress: show a progress bar.
     """
 
@@ -266,6 +272,9 @@ class BakeConfig:
     inside_backface_share: float = 0.5
     probes_per_batch: int = 8
     quality: float = 1.0
+    noise_target: float = 0.05
+    pilot_spp: int = 1
+    max_spp: int = 256
     progress: bool = True
 
     def __post_init__(self):
@@ -291,6 +300,9 @@ class BakeConfig:
             )
         if not self.quality > 0:
             raise ConfigError(f"BakeConfig.quality must be positive, got {self.quality!r}")
+        check_target(
+            "BakeConfig", noise_target=self.noise_target, pilot_spp=self.pilot_spp, max_spp=self.max_spp
+        )
 
 
 def probe_bytes(scene: Scene, config: BakeConfig) -> int:
@@ -423,6 +435,22 @@ def _bake_batch(
     backface = back.reshape(b, geo_res, geo_res)
 
     k_dir, k_rad = jax.random.split(key)
+    radiance, emission, every_lobe = texel_radiance(pos, radiance_fn, res, n_sub, k_dir, k_rad)
+    return radiance, emission, every_lobe, normal, distance, backface
+
+
+def texel_radiance(
+    pos: Float[Array, "b 3"],
+    radiance_fn: RadianceFn,
+    res: int,
+    n_sub: int,
+    k_dir: jax.Array,
+    k_rad: jax.Array,
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The (b, res, res, 3) radiance, emission and every-lobe maps of the probes at ``pos``: the mean of
+    ``n_sub``² rays per texel, jittered with ``k_dir``, path traced with ``k_rad``. Two keys, so that the
+    bake's pilot (``_bake_samples``) can hold the jitter and draw new paths."""
+    b = pos.shape[0]
     sub = n_sub * n_sub
     dirs = jax.vmap(lambda k: jittered_texel_directions(res, n_sub, key=k))(jax.random.split(k_dir, b))
     dirs = dirs.reshape(-1, 3)
@@ -431,7 +459,7 @@ def _bake_batch(
     per_texel = lambda x: np.asarray(x).reshape(b, res, res, sub, 3).mean(axis=3)
     radiance, emission = per_texel(out[0]), per_texel(out[1])
     every_lobe = per_texel(out[2]) if len(out) > 2 else radiance  # :data:`RadianceFn`
-    return radiance, emission, every_lobe, normal, distance, backface
+    return radiance, emission, every_lobe
 
 
 def padded_capacity(n: int) -> int:
