@@ -371,7 +371,7 @@ def test_config_errors():
 
 
 def test_tracer_setup_is_a_few_compiled_programs(room):
-    """make_tracer's per-probe arrays are built by one compiled program (issue 32): eagerly, its set-up
+    """make_tracer's per-probe arrays are built by two compiled programs (issue 32): eagerly, its set-up
     compiled ~200 small programs, each a cache entry to load in every later process. Three probes (a
     probe count no other test here uses, so nothing is compiled yet in this process) count every XLA
     compile (or persistent-cache load) it triggers."""
@@ -388,9 +388,11 @@ def test_tracer_setup_is_a_few_compiled_programs(room):
         make_tracer(lf, scene.bounds)
     finally:
         monitoring.unregister_event_duration_listener(listener)
-    assert "jit(_probe_maps)" in names  # the set-up ran through the one program, not around it
-    # measured: 12 (the voxel index's reads and the arrays' transfers included); eagerly it was ~200
-    assert len(names) <= 16, " ".join(sorted(names))
+    # the set-up ran through its two programs, not around them
+    assert {"jit(_probe_cells)", "jit(_cell_maps)"} <= set(names), " ".join(sorted(names))
+    # measured: 18 (the voxel index's reads, the stacking of the rows and the arrays' transfers
+    # included); eagerly it was ~200
+    assert len(names) <= 24, " ".join(sorted(names))
 
 
 def test_unusable_probes_take_no_maps_and_change_no_ray(room):
@@ -403,7 +405,7 @@ def test_unusable_probes_take_no_maps_and_change_no_ray(room):
     three = eqx.tree_at(lambda lf: lf.active, three, jnp.asarray([True, False, True]))
     two = _bake(scene, np.array([a, b]), 8)
     t3, t2 = make_tracer(three, scene.bounds), make_tracer(two, scene.bounds)
-    assert t3.surfel_x.shape[0] == t2.surfel_x.shape[0] == 2  # rows for the usable probes only
+    assert t3.surfel_r.shape[0] == t2.surfel_r.shape[0] == 2  # rows for the usable probes only
     np.testing.assert_array_equal(np.asarray(t3.row)[[0, 2]], [0, 1])
     rng = np.random.default_rng(3)
     o = jnp.asarray(rng.uniform([0.3, 0.3, 0.3], ROOM_HI - 0.3, (300, 3)), jnp.float32)
@@ -421,9 +423,9 @@ def test_unusable_probes_take_no_maps_and_change_no_ray(room):
 def test_cell_bounds_per_quadrant_agree_with_the_simple_form(sub):
     """``_surfels.probe_cells`` (each neighbour's partner bound on its own quadrant of cells) against
     ``probe_cells_reference`` (every bound on every cell) on the Cornell box, whose blocks give silhouettes,
-    concave and convex creases: the same ambiguous cells, and bounds that are minima of the same plane
-    samples (equal up to the rounding of fused arithmetic: 1e-6 relative)."""
-    from probeplace.probes._surfels import cell_directions, probe_cells, probe_cells_reference
+    concave and convex creases: the same ambiguous cells, and bounds that are minima of the same closed-form
+    cone bounds (equal up to the rounding of fused arithmetic: 1e-6 relative)."""
+    from probeplace.probes._surfels import cell_cones, probe_cells, probe_cells_reference
     from probeplace.probes._trace import _geometry_maps
     from probeplace.scene import load_scene
 
@@ -433,18 +435,18 @@ def test_cell_bounds_per_quadrant_agree_with_the_simple_form(sub):
     xb, nb, hb, wb = _geometry_maps(lf.distance, lf.normal, lf.far)
     r = xb.shape[1] - 2
     kw = dict(sub=sub, tol=0.05, thickness=0.03, big=float(4 * lf.far))
-    w9c, w9t = cell_directions(r * sub), cell_directions(r)
+    cc, ct = cell_cones(r * sub), cell_cones(r)
     for p in range(2):
-        fast = jax.jit(lambda *a: probe_cells(*a, **kw))(xb[p], nb[p], hb[p], wb, w9c, w9t)
-        slow = jax.jit(lambda *a: probe_cells_reference(*a, **kw))(xb[p], nb[p], hb[p], wb, w9c, w9t)
+        fast = jax.jit(lambda *a: probe_cells(*a, **kw))(xb[p], nb[p], hb[p], wb, cc, ct)
+        slow = jax.jit(lambda *a: probe_cells_reference(*a, **kw))(xb[p], nb[p], hb[p], wb, cc, ct)
         np.testing.assert_array_equal(np.asarray(fast[2]), np.asarray(slow[2]))
         assert np.asarray(slow[2]).any() and not np.asarray(slow[2]).all()  # a case with ambiguous cells
-        # Each bound is the min (max) of the same float32 plane samples, computed by the same operations in
+        # Each bound is the min (max) of the same float32 cone bounds, computed by the same operations in
         # the same order; the two programs differ only in how XLA fuses them, i.e. where it contracts a
-        # multiply-add of the 3-term dot products (x·n, ω·n) into an FMA: at most ~2 ulps of a term, so a
-        # few ulps of a sample that does not graze its plane. 1e-6 is 8 ulps. Measured: bit-identical on
-        # AVX-512 and under the AVX2 and SSE4.2 caps (both sub). A grazing sample (ω·n ≈ 0) could differ
-        # more; none is the extreme of a cell here, which this test would report.
+        # multiply-add of the 3-term dot products (x·n, axis·n) and of cos α cos θ ± sin α sin θ into an
+        # FMA: at most ~2 ulps of a term, so a few ulps of a bound whose cone does not graze its plane.
+        # 1e-6 is 8 ulps. A grazing cone (cos(α ± θ) ≈ 0) could differ more; none is the extreme of a cell
+        # here, which this test would report.
         for a, b in zip(fast[:2], slow[:2], strict=True):
             np.testing.assert_allclose(np.asarray(a), np.asarray(b), rtol=1e-6)
 
@@ -458,10 +460,10 @@ def test_tracer_bytes_counts_the_maps_it_builds(room):
     scene, lf = room
     for sub in (1, 2):
         tr = make_tracer(lf, scene.bounds, config=TraceConfig(subdivide=sub))
-        fields = ("surfel_x", "surfel_n", "has_surface", "ambiguous", "bound_flat", "upper_flat")
+        fields = ("surfel_r", "surfel_n", "has_surface", "ambiguous", "bound_flat", "upper_flat")
         built = sum(np.asarray(getattr(tr, f)).nbytes for f in fields)
         assert tracer_bytes(1, tr.res, sub) == built
     with pytest.MonkeyPatch.context() as mp:
-        mp.setenv("PROBEPLACE_MAX_BYTES", "100KB")  # the 32² tracer: 2 × 77 kB
+        mp.setenv("PROBEPLACE_MAX_BYTES", "50KB")  # the 32² tracer: 2 × 39 kB
         with pytest.raises(ResourceError, match="light-field tracer of 1 usable probes at geometry_res=32"):
             make_tracer(lf, scene.bounds)

@@ -25,6 +25,18 @@ def safe_normalize(v: Float[Array, "... d"], tiny: float = 1e-12) -> Float[Array
     return v * inv
 
 
+def dot3(a: Float[Array, "... 3"], b: Float[Array, "... 3"]) -> Float[Array, "..."]:
+    """a·b over a last axis of three, the products summed as written: XLA:CPU vectorises this across the
+    leading axes, but not ``jnp.sum(a * b, axis=-1)``'s reduction over a minor axis of 3 (6× slower on
+    (1024², 3) arrays; issue 33's tracer set-up)."""
+    return a[..., 0] * b[..., 0] + a[..., 1] * b[..., 1] + a[..., 2] * b[..., 2]
+
+
+def norm3(v: Float[Array, "... 3"]) -> Float[Array, "..."]:
+    """|v| over a last axis of three (:func:`dot3`'s layout; not safe at 0 for gradients: ``safe_norm``)."""
+    return jnp.sqrt(dot3(v, v))
+
+
 def safe_sqrt(x: Float[Array, "..."]) -> Float[Array, "..."]:
     """sqrt(max(x, 0)) with a finite gradient at 0."""
     pos = x > 0

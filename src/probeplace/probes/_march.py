@@ -133,7 +133,7 @@ def _surfel_test(tr, p, pc: _Piece, ij, t, t_exit):
     m = tr.march_res
     rows, cols = _candidates(tr, ij)
     w = tr.row[p]  # the probe's row of the per-probe maps
-    xs, n, has = tr.surfel_x[w, rows, cols], tr.surfel_n[w, rows, cols], tr.has_surface[w, rows, cols]
+    xs, n, has = tr.surfels(w, rows, cols)
     ambiguous = tr.ambiguous[w, jnp.clip(ij[0], 0, m - 1), jnp.clip(ij[1], 0, m - 1)]
     # Signed distances from each plane at the cell's ends, positive on the probe's side.
     g0 = jnp.sum(((o + t * d)[None, :] - xs) * n, axis=-1)
@@ -213,8 +213,8 @@ def _march_step(tr, p, pc: _Piece, tb, span, t_min, c):
     # Deep test: the ray, where it is now, beyond every fine cell's upper bound (behind them all)?
     flat = offsets[level] + ij[0] * cells + ij[1]
     rho_t = jnp.linalg.norm(o + t * d)
-    skip = jnp.maximum(rho_t, jnp.linalg.norm(o + t_exit * d)) < tr.bound_flat[tr.row[p], flat]
-    deep = rho_t > tr.upper_flat[tr.row[p], flat]
+    skip = jnp.maximum(rho_t, jnp.linalg.norm(o + t_exit * d)) < tr.lower(tr.row[p], flat)
+    deep = rho_t > tr.upper(tr.row[p], flat)
     at_fine = level == 0
     fine, t_hit, fine_texel = _surfel_test(tr, p, pc, ij, t, t_exit)
     fine_texel = jnp.where(at_fine, fine_texel, _cell_at(pc, t, jnp.int32(m)) // tr.sub)

@@ -70,13 +70,13 @@ import numpy as np
 from jaxtyping import Array, Bool, Float, Int
 from scipy.spatial import cKDTree
 
-from .._core import ConfigError, LightFieldProbes, add_border, oct_encode, texel_directions
+from .._core import ConfigError, LightFieldProbes, add_border, dot3, oct_encode, texel_directions
 from .._core._errors import check_memory
 from .._core._progress import progress_bar
 from ._bake import _warn_probe_layout
 from ._index import GridIndex, VoxelIndex, grid_index, nearest_index, voxel_index
 from ._march import HIT, MISS, UNKNOWN, _candidates, _partners, trace_probe
-from ._surfels import cell_directions, probe_cells
+from ._surfels import cell_cones, interleave_quadrants, probe_cells_quadrants
 
 #: Status codes of :class:`TraceResult` (``UNRESOLVED``: no probe could decide).
 RAY_MISS, RAY_HIT, RAY_UNRESOLVED = 0, 1, 2
@@ -209,14 +209,19 @@ class LightFieldTracer(eqx.Module):
         usable: probes the tracer may use (active, not inside geometry).
         row: each probe's row in the per-probe maps below, which hold the usable probes only; an
             unusable probe's row is 0 and never read.
-        surfel_x: per geometry texel, *bordered* ((R+2)², the octahedral neighbours across the fold in
-            the ring), the surfel point relative to the probe, r·ω_c (zeros: no surface).
-        surfel_n: the surfel's normal, turned toward the probe (bordered).
+        surfel_r: per geometry texel, *bordered* ((R+2)², the octahedral neighbours across the fold in
+            the ring), the surfel's radial distance r (0: no surface); its point is r·ω_c
+            (:meth:`surfels`).
+        texel_dirs: the bordered texels' sample directions ω_c, shared by every probe.
+        surfel_n: the surfel's normal, turned toward the probe (bordered), float16 (half the bytes;
+            the planes move by ~5e-4 of their distance, far below a texel's footprint at any map size).
         has_surface: the texel's ray hit something (its distance is below ``far``; bordered).
         ambiguous: per march cell, the texel's surfel is not the only surface there (``_surfels``).
         bound_flat: per probe, the conservative lower bounds of all MIP levels 0 (M²) … top, flattened
-            (M = ``march_res``; min-MIP).
-        upper_flat: likewise the upper bounds beyond which the fine test says unknown (max-MIP).
+            (M = ``march_res``; min-MIP), as float16 fractions of ``far`` rounded down (:meth:`lower`).
+        upper_flat: likewise the upper bounds beyond which the fine test says unknown (max-MIP), rounded
+            up (:meth:`upper`). Issue 33: 18.8 → 9.5 MB a usable probe at 512², ``subdivide`` 2, with
+            the same answers up to the normals' rounding (a looser bound only costs a step).
         spacing: the probes' typical spacing (median nearest-neighbour distance of the usable probes).
         far: distance stored for escaping rays.
         t_far: largest ray distance traced (the scene bounds' diagonal).
@@ -233,7 +238,8 @@ class LightFieldTracer(eqx.Module):
     pos_world: Float[Array, "n_probes 3"]
     usable: Bool[Array, " n_probes"]
     row: Int[Array, " n_probes"]
-    surfel_x: Float[Array, "n_rows rb rb 3"]
+    surfel_r: Float[Array, "n_rows rb rb"]
+    texel_dirs: Float[Array, "rb rb 3"]
     surfel_n: Float[Array, "n_rows rb rb 3"]
     has_surface: Bool[Array, "n_rows rb rb"]
     ambiguous: Bool[Array, "n_rows m m"]
@@ -263,6 +269,21 @@ class LightFieldTracer(eqx.Module):
 
     def level_offset(self, level: int) -> int:
         return sum((self.march_res >> k) ** 2 for k in range(level))
+
+    def surfels(self, w, rows, cols) -> tuple[Array, Array, Array]:
+        """(points r·ω_c, normals, has-surface) of the bordered texels (rows, cols) of map row ``w``, in
+        float32: the same points as r·ω_c computed at build time (one float32 product)."""
+        r = self.surfel_r[w, rows, cols]
+        n = self.surfel_n[w, rows, cols].astype(jnp.float32)
+        return r[..., None] * self.texel_dirs[rows, cols], n, self.has_surface[w, rows, cols]
+
+    def lower(self, w, flat) -> Array:
+        """Lower bound of MIP entry ``flat`` of map row ``w`` (float32; never above the exact bound)."""
+        return self.bound_flat[w, flat].astype(jnp.float32) * self.far
+
+    def upper(self, w, flat) -> Array:
+        """Upper bound of MIP entry ``flat`` of map row ``w`` (float32; never below the exact bound)."""
+        return self.upper_flat[w, flat].astype(jnp.float32) * self.far
 
 
 class TraceResult(eqx.Module):
@@ -298,8 +319,8 @@ def _geometry_maps(distance, normal, far):
     dist = jnp.asarray(distance, jnp.float32)
     nrm = jnp.asarray(normal, jnp.float32)
     omega = add_border(texel_directions(res, jnp.float32))
-    has = (dist < 0.999 * far) & (jnp.sum(nrm * nrm, axis=-1) > 0.25)
-    facing = jnp.sum(nrm * omega[None], axis=-1)
+    has = (dist < 0.999 * far) & (dot3(nrm, nrm) > 0.25)
+    facing = dot3(nrm, omega[None])
     # Turn every normal toward the probe (front and back are judged from the observed side, whatever the
     # bake stored); one missing or perpendicular to the view gets the view-facing normal.
     nrm = jnp.where((facing > 0)[..., None], -nrm, nrm)
@@ -320,50 +341,97 @@ def _mip_flat(level: Float[Array, "p m m"], how: str) -> Float[Array, "p k"]:
 
 
 @partial(jax.jit, static_argnames=("sub", "tol", "thickness"))
-def _probe_maps(distance, normal, far, w9_cells, w9_texels, *, sub: int, tol: float, thickness: float):
-    """ONE probe's tracer arrays from its baked maps, as one compiled program (issue 32: eagerly, the
-    set-up was ~200 small programs; one probe at a time, so any probe count reuses it): bordered surfel
-    points, normals and has-surface flags, the ambiguous cells, and the flattened min-MIP of the cells'
-    lower bounds and max-MIP of their upper bounds. The cells' and texels' sample directions
-    (``_surfels.cell_directions``) are arguments, computed once for all probes (at 512² they are 9.4 M
-    directions: recomputed in every call they were 0.13 s of its 0.93 s)."""
+def _probe_cells(distance, normal, far, cones_cells, cones_texels, *, sub: int, tol: float, thickness: float):
+    """ONE probe's bordered surfel distances, normals and has-surface flags, and its march cells' (lower
+    bound, upper bound, ambiguous) per cell quadrant (``_surfels.probe_cells_quadrants``), as one compiled
+    program. The cells' and texels' cones (``_surfels.cell_cones``) are arguments, computed once per
+    resolution for all probes."""
     xb, nb, hb, wb = _geometry_maps(distance[None], normal[None], far)
+    # The march reads float16 normals (LightFieldTracer.surfel_n): bound the planes it will test.
+    nb = nb.astype(jnp.float16).astype(jnp.float32)
     big = 4.0 * jnp.asarray(far, jnp.float32)
-    lower, upper, ambiguous = probe_cells(
-        xb[0], nb[0], hb[0], wb, w9_cells, w9_texels, sub=sub, tol=tol, thickness=thickness, big=big
+    cells = probe_cells_quadrants(
+        xb[0], nb[0], hb[0], wb, cones_cells, cones_texels, sub=sub, tol=tol, thickness=thickness, big=big
     )
-    return xb[0], nb[0], hb[0], ambiguous, _mip_flat(lower[None], "min")[0], _mip_flat(upper[None], "max")[0]
+    # Stored compactly (LightFieldTracer): the radial distance, not the point; float16 normals.
+    radial = jnp.where(hb[0], jnp.asarray(distance, jnp.float32), 0.0)
+    return radial, nb[0].astype(jnp.float16), hb[0], cells, wb
+
+
+def _half_fraction(v, far, down: bool):
+    """``v`` / ``far`` as float16, rounded down (or up) so that float16 · far in float32 never crosses v:
+    1e-6 of slack for the float32 product, then one float16 step whenever rounding went the wrong way."""
+    frac = v / far * (1 - 1e-6 if down else 1 + 1e-6)
+    h = frac.astype(jnp.float16)
+    wrong = h.astype(jnp.float32) > frac if down else h.astype(jnp.float32) < frac
+    return jnp.where(wrong, jnp.nextafter(h, jnp.float16(-jnp.inf if down else jnp.inf)), h)
+
+
+@jax.jit
+def _cell_maps(lower_q, upper_q, ambiguous_q, far):
+    """The quadrant lists of :func:`_probe_cells` as the (m, m) ambiguous cells and the flattened min-MIP
+    of the lower bounds and max-MIP of the upper bounds (float16 fractions of ``far``, rounded outward): a
+    program of its own, so that the interleave copies materialised arrays
+    (``_surfels.interleave_quadrants``)."""
+    lower, upper, ambiguous = (interleave_quadrants(a) for a in (lower_q, upper_q, ambiguous_q))
+    lo, hi = _mip_flat(lower[None], "min")[0], _mip_flat(upper[None], "max")[0]
+    return ambiguous, _half_fraction(lo, far, down=True), _half_fraction(hi, far, down=False)
+
+
+def _probe_maps(distance, normal, far, cones_cells, cones_texels, *, sub: int, tol: float, thickness: float):
+    """ONE probe's tracer arrays from its baked maps (two compiled programs; issue 32: eagerly, the set-up
+    was ~200 small programs; one probe at a time, so any probe count reuses them): bordered surfel
+    distances, normals and has-surface flags, the ambiguous cells, and the bound pyramids
+    (:class:`LightFieldTracer`'s layout); last, the bordered texel directions (the same for every probe)."""
+    kw = dict(sub=sub, tol=tol, thickness=thickness)
+    rb, nb, hb, cells, directions = _probe_cells(distance, normal, far, cones_cells, cones_texels, **kw)
+    return rb, nb, hb, *_cell_maps(*cells, jnp.asarray(far, jnp.float32)), directions
 
 
 def tracer_bytes(n_usable: int, res: int, subdivide: int) -> int:
     """Bytes of a tracer's per-probe maps (:class:`LightFieldTracer`) for ``n_usable`` usable probes at
-    geometry resolution ``res``: bordered surfel points and normals (float32 × 3 each) and has-surface
-    flags, ambiguous cells (bool) and the lower- and upper-bound pyramids (float32, every level) of the
-    ``res·subdivide``² march cells. 18.8 MB a probe at 512², ``subdivide`` 2."""
+    geometry resolution ``res``: bordered surfel distances (float32), normals (float16 × 3) and
+    has-surface flags, ambiguous cells (bool) and the lower- and upper-bound pyramids (float16, every
+    level) of the ``res·subdivide``² march cells. 9.5 MB a probe at 512², ``subdivide`` 2 (the shared
+    texel directions, 3 MB once, are not counted)."""
     rb, m = res + 2, res * subdivide
     levels = sum((m >> k) ** 2 for k in range(m.bit_length()))
-    return int(n_usable) * (rb * rb * (2 * 3 * 4 + 1) + m * m + 2 * 4 * levels)
+    return int(n_usable) * (rb * rb * (4 + 3 * 2 + 1) + m * m + 2 * 2 * levels)
 
 
-def _all_probe_maps(lf: LightFieldProbes, keep, config: TraceConfig) -> tuple[Array, ...]:
-    """:func:`_probe_maps` of the probes ``keep``, stacked in that order (filled on the host: no
-    program per probe count), with a progress bar when there is much to do."""
+@partial(jax.jit, static_argnums=1)
+def _first_rows(arrays: tuple[Array, ...], n: int) -> tuple[Array, ...]:
+    """Stacks of ``n`` rows shaped like ``arrays``, row 0 set to them (one program, not one per array)."""
+    return tuple(jnp.zeros((n, *a.shape), a.dtype).at[0].set(a) for a in arrays)
+
+
+@partial(jax.jit, donate_argnums=0)
+def _set_rows(stacks: tuple[Array, ...], arrays: tuple[Array, ...], i) -> tuple[Array, ...]:
+    """``stacks[k][i] = arrays[k]`` in place (the stacks are donated): a small program per probe count,
+    instead of staging every probe's maps on the host and copying them back (2 × 9.5 MB a probe at 512²)."""
+    return tuple(s.at[i].set(a) for s, a in zip(stacks, arrays, strict=True))
+
+
+def _all_probe_maps(lf: LightFieldProbes, keep, config: TraceConfig) -> tuple[tuple[Array, ...], Array]:
+    """:func:`_probe_maps` of the probes ``keep``, stacked in that order (one probe at a time: no big
+    program per probe count), with a progress bar when there is much to do; and the bordered texel
+    directions."""
     kw = dict(sub=config.subdivide, tol=config.edge_tol, thickness=config.thickness)
-    out = None
     res = lf.distance.shape[-1] - 2
     big_job = len(keep) * (res * config.subdivide) ** 2 >= 2**22  # ~ a few seconds and more
     bar = progress_bar(total=len(keep), desc=f"tracer maps {res}²", unit="probe", disable=not big_job)
     distance, normal = np.asarray(lf.distance), np.asarray(lf.normal)  # host rows: no program per row
-    w9 = cell_directions(res * config.subdivide), cell_directions(res)
+    cones = cell_cones(res * config.subdivide), cell_cones(res)
+    out = directions = None
     for i, p in enumerate(keep):
-        arrays = [np.asarray(a) for a in _probe_maps(distance[p], normal[p], lf.far, *w9, **kw)]
+        *arrays, directions = _probe_maps(distance[p], normal[p], lf.far, *cones, **kw)
         if out is None:
-            out = [np.empty((len(keep), *a.shape), a.dtype) for a in arrays]
-        for o, a in zip(out, arrays, strict=True):
-            o[i] = a
+            out = _first_rows(tuple(arrays), len(keep))
+        else:
+            out = _set_rows(out, tuple(arrays), np.int32(i))
         bar.update(1)
     bar.close()
-    return tuple(jnp.asarray(o) for o in out)
+    return out, directions
 
 
 def _spacing(pos: np.ndarray) -> float:
@@ -427,7 +495,8 @@ def make_tracer(
         except ConfigError:
             index = voxel_index(lf, b)
     far = jnp.asarray(lf.far, jnp.float32)
-    xb, nb, hb, ambiguous, bound_flat, upper_flat = _all_probe_maps(lf, keep if len(keep) else [0], config)
+    maps, texel_dirs = _all_probe_maps(lf, keep if len(keep) else [0], config)
+    rb, nb, hb, ambiguous, bound_flat, upper_flat = maps
     row = np.zeros(len(pos), np.int32)  # unusable probes: row 0, never read (the index skips them)
     row[keep] = np.arange(len(keep), dtype=np.int32)
     # scalars and masks on the host (float32 as before): each eager jnp operation is one more program
@@ -437,7 +506,8 @@ def make_tracer(
         pos_world=jnp.asarray(lf.pos_world, jnp.float32),
         usable=jnp.asarray(usable),
         row=jnp.asarray(row),
-        surfel_x=xb,
+        surfel_r=rb,
+        texel_dirs=texel_dirs,
         surfel_n=nb,
         has_surface=hb,
         ambiguous=ambiguous,
@@ -469,7 +539,7 @@ def _sees(tr: LightFieldTracer, probes: Int[Array, " k"], x: Float[Array, "3"]) 
     def one(p, ij, rel):
         rows, cols = _candidates(tr, ij)
         w = tr.row[p]
-        xs, n, has = tr.surfel_x[w, rows, cols], tr.surfel_n[w, rows, cols], tr.has_surface[w, rows, cols]
+        xs, n, has = tr.surfels(w, rows, cols)
         g = jnp.sum((rel[None, :] - xs) * n, axis=-1)
         front = ~has | (g > tr.config.fallback_margin * jnp.linalg.norm(xs, axis=-1))
         # one surface: in front of its own plane and its concave-crease partners' (``_march._partners``)
