@@ -429,12 +429,26 @@ def targets(result: dict) -> dict:
     return out
 
 
+def scene_values(values: list[str] | None, key: str, kind) -> list | None:
+    """``--grids`` / ``--res`` values for scene ``key``: plain values apply to every scene, ``scene:value``
+    to that scene only (e.g. ``--res cornell:64 sponza:16``)."""
+    if not values:
+        return None
+    out = [kind(v.split(":", 1)[1]) for v in values if v.startswith(f"{key}:")]
+    out += [kind(v) for v in values if ":" not in v]
+    return out or None
+
+
 def main(argv=None) -> dict:
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--quick", action="store_true", help="small grids, resolutions and images")
     ap.add_argument("--scenes", nargs="+", default=["cornell", "sponza"], choices=list(SCENES))
-    ap.add_argument("--grids", nargs="+", default=None, help="override the grids (all scenes), e.g. 4x4x4")
-    ap.add_argument("--res", nargs="+", type=int, default=None, help="override the map resolutions")
+    ap.add_argument(
+        "--grids", nargs="+", default=None, help="grids, e.g. 4x4x4 (all scenes) or sponza:16x8x8"
+    )
+    ap.add_argument(
+        "--res", nargs="+", default=None, help="map resolutions, e.g. 64 (all scenes) or cornell:64"
+    )
     ap.add_argument("--bake-spp", type=int, default=None, help="paths per texel ray (default 8; quick 4)")
     ap.add_argument("--n-sub", type=int, default=1, help="n_sub² jittered rays per texel")
     ap.add_argument("--max-depth", type=int, default=4, help="evaluation path depth (bake: − 1)")
@@ -504,8 +518,8 @@ def main(argv=None) -> dict:
         instrument_costs(args, result)
     for key in args.scenes:
         plan = dict((QUICK if q else FULL)[key])
-        plan["grids"] = args.grids or plan["grids"]
-        plan["res"] = args.res or plan["res"]
+        plan["grids"] = scene_values(args.grids, key, str) or plan["grids"]
+        plan["res"] = scene_values(args.res, key, int) or plan["res"]
         run_scene(key, args, plan, result)
     for k, why in NOT_MEASURED.items():
         result[k] = None
