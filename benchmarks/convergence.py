@@ -204,8 +204,9 @@ class Bench:
 
         a = self.args
         pos = grid_positions(self.scene, dims)
-        per_batch = int(max(1, min(len(pos), (1 << 18) // (res * res * a.n_sub * a.n_sub))))
         geo = self.geometry_res(res)
+        # ~2^18 radiance rays and ~2^21 geometry rays a batch (at 512² geometry: 8 probes)
+        per_batch = int(max(1, min(len(pos), (1 << 18) // (res * res * a.n_sub**2), (1 << 21) // geo**2)))
         cfg = BakeConfig(
             radiance_res=res, geometry_res=geo, n_sub=a.n_sub, probes_per_batch=per_batch, progress=False
         )
@@ -514,13 +515,13 @@ def main(argv=None) -> dict:
         "skipped": {},
         "shared_steps_s": {},
     }
-    if "sponza" in args.scenes and not args.no_costs:
-        instrument_costs(args, result)
     for key in args.scenes:
         plan = dict((QUICK if q else FULL)[key])
         plan["grids"] = scene_values(args.grids, key, str) or plan["grids"]
         plan["res"] = scene_values(args.res, key, int) or plan["res"]
         run_scene(key, args, plan, result)
+    if "sponza" in args.scenes and not args.no_costs:
+        instrument_costs(args, result)
     for k, why in NOT_MEASURED.items():
         result[k] = None
         result["skipped"][k] = why
