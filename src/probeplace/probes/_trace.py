@@ -213,12 +213,14 @@ class LightFieldTracer(eqx.Module):
             the ring), the surfel's radial distance r (0: no surface); its point is r·ω_c
             (:meth:`surfels`).
         texel_dirs: the bordered texels' sample directions ω_c, shared by every probe.
-        surfel_n: the surfel's normal, turned toward the probe (bordered), float16 (half the bytes;
-            the planes move by ~5e-4 of their distance, far below a texel's footprint at any map size).
+        surfel_n: the surfel's normal, turned toward the probe (bordered), bfloat16 (half the bytes; a
+            normal tilts by < 4e-3 rad, and the bounds are built from the rounded normals). bfloat16, not
+            float16: XLA:CPU converts float16 with library calls it cannot link on a CPU without F16C
+            (``--xla_cpu_max_isa=SSE4_2``: "Symbols not found: __extendhfsf2"), bfloat16 with bit operations.
         has_surface: the texel's ray hit something (its distance is below ``far``; bordered).
         ambiguous: per march cell, the texel's surfel is not the only surface there (``_surfels``).
         bound_flat: per probe, the conservative lower bounds of all MIP levels 0 (M²) … top, flattened
-            (M = ``march_res``; min-MIP), as float16 fractions of ``far`` rounded down (:meth:`lower`).
+            (M = ``march_res``; min-MIP), as bfloat16 fractions of ``far`` rounded down (:meth:`lower`).
         upper_flat: likewise the upper bounds beyond which the fine test says unknown (max-MIP), rounded
             up (:meth:`upper`). Issue 33: 18.8 → 9.5 MB a usable probe at 512², ``subdivide`` 2, with
             the same answers up to the normals' rounding (a looser bound only costs a step).
@@ -347,35 +349,36 @@ def _probe_cells(distance, normal, far, cones_cells, cones_texels, *, sub: int, 
     program. The cells' and texels' cones (``_surfels.cell_cones``) are arguments, computed once per
     resolution for all probes."""
     xb, nb, hb, wb = _geometry_maps(distance[None], normal[None], far)
-    # The march reads float16 normals (LightFieldTracer.surfel_n): bound the planes it will test.
-    nb = nb.astype(jnp.float16).astype(jnp.float32)
+    # The march reads bfloat16 normals (LightFieldTracer.surfel_n): bound the planes it will test.
+    nb = nb.astype(jnp.bfloat16).astype(jnp.float32)
     big = 4.0 * jnp.asarray(far, jnp.float32)
     cells = probe_cells_quadrants(
         xb[0], nb[0], hb[0], wb, cones_cells, cones_texels, sub=sub, tol=tol, thickness=thickness, big=big
     )
-    # Stored compactly (LightFieldTracer): the radial distance, not the point; float16 normals.
+    # Stored compactly (LightFieldTracer): the radial distance, not the point; bfloat16 normals.
     radial = jnp.where(hb[0], jnp.asarray(distance, jnp.float32), 0.0)
-    return radial, nb[0].astype(jnp.float16), hb[0], cells, wb
+    return radial, nb[0].astype(jnp.bfloat16), hb[0], cells, wb
 
 
-def _half_fraction(v, far, down: bool):
-    """``v`` / ``far`` as float16, rounded down (or up) so that float16 · far in float32 never crosses v:
-    1e-6 of slack for the float32 product, then one float16 step whenever rounding went the wrong way."""
+def _bf16_fraction(v, far, down: bool):
+    """``v`` / ``far`` as bfloat16, rounded down (or up) so that bfloat16 · far in float32 never crosses v:
+    1e-6 of slack for the float32 product, then one bfloat16 step whenever rounding went the wrong way
+    (a bound looser by < 0.8 %: a step more now and then, never another answer)."""
     frac = v / far * (1 - 1e-6 if down else 1 + 1e-6)
-    h = frac.astype(jnp.float16)
+    h = frac.astype(jnp.bfloat16)
     wrong = h.astype(jnp.float32) > frac if down else h.astype(jnp.float32) < frac
-    return jnp.where(wrong, jnp.nextafter(h, jnp.float16(-jnp.inf if down else jnp.inf)), h)
+    return jnp.where(wrong, jnp.nextafter(h, jnp.bfloat16(-jnp.inf if down else jnp.inf)), h)
 
 
 @jax.jit
 def _cell_maps(lower_q, upper_q, ambiguous_q, far):
     """The quadrant lists of :func:`_probe_cells` as the (m, m) ambiguous cells and the flattened min-MIP
-    of the lower bounds and max-MIP of the upper bounds (float16 fractions of ``far``, rounded outward): a
+    of the lower bounds and max-MIP of the upper bounds (bfloat16 fractions of ``far``, rounded outward): a
     program of its own, so that the interleave copies materialised arrays
     (``_surfels.interleave_quadrants``)."""
     lower, upper, ambiguous = (interleave_quadrants(a) for a in (lower_q, upper_q, ambiguous_q))
     lo, hi = _mip_flat(lower[None], "min")[0], _mip_flat(upper[None], "max")[0]
-    return ambiguous, _half_fraction(lo, far, down=True), _half_fraction(hi, far, down=False)
+    return ambiguous, _bf16_fraction(lo, far, down=True), _bf16_fraction(hi, far, down=False)
 
 
 def _probe_maps(distance, normal, far, cones_cells, cones_texels, *, sub: int, tol: float, thickness: float):
@@ -390,8 +393,8 @@ def _probe_maps(distance, normal, far, cones_cells, cones_texels, *, sub: int, t
 
 def tracer_bytes(n_usable: int, res: int, subdivide: int) -> int:
     """Bytes of a tracer's per-probe maps (:class:`LightFieldTracer`) for ``n_usable`` usable probes at
-    geometry resolution ``res``: bordered surfel distances (float32), normals (float16 × 3) and
-    has-surface flags, ambiguous cells (bool) and the lower- and upper-bound pyramids (float16, every
+    geometry resolution ``res``: bordered surfel distances (float32), normals (bfloat16 × 3) and
+    has-surface flags, ambiguous cells (bool) and the lower- and upper-bound pyramids (bfloat16, every
     level) of the ``res·subdivide``² march cells. 9.5 MB a probe at 512², ``subdivide`` 2 (the shared
     texel directions, 3 MB once, are not counted)."""
     rb, m = res + 2, res * subdivide
