@@ -67,7 +67,7 @@ import equinox as eqx
 import jax
 import jax.numpy as jnp
 import numpy as np
-from jaxtyping import Array, Bool, Float, Int
+from jaxtyping import Array, Bool, Float, Int, UInt16
 from scipy.spatial import cKDTree
 
 from .._core import ConfigError, LightFieldProbes, add_border, dot3, oct_encode, texel_directions
@@ -217,13 +217,15 @@ class LightFieldTracer(eqx.Module):
             normal tilts by < 4e-3 rad, and the bounds are built from the rounded normals). bfloat16, not
             float16: XLA:CPU converts float16 with library calls it cannot link on a CPU without F16C
             (``--xla_cpu_max_isa=SSE4_2``: "Symbols not found: __extendhfsf2"), bfloat16 with bit operations.
+            Held as the values' uint16 bits (:func:`_bf16_bits`; read through :meth:`surfels`).
         has_surface: the texel's ray hit something (its distance is below ``far``; bordered).
         ambiguous: per march cell, the texel's surfel is not the only surface there (``_surfels``).
         bound_flat: per probe, the conservative lower bounds of all MIP levels 0 (M²) … top, flattened
             (M = ``march_res``; min-MIP), as bfloat16 fractions of ``far`` rounded down (:meth:`lower`).
         upper_flat: likewise the upper bounds beyond which the fine test says unknown (max-MIP), rounded
-            up (:meth:`upper`). Issue 33: 18.8 → 9.5 MB a usable probe at 512², ``subdivide`` 2, with
-            the same answers up to the normals' rounding (a looser bound only costs a step).
+            up (:meth:`upper`); uint16 bits like ``surfel_n``. Issue 33: 18.8 → 9.5 MB a usable probe at
+            512², ``subdivide`` 2, with the same answers up to the normals' rounding (a looser bound only
+            costs a step).
         spacing: the probes' typical spacing (median nearest-neighbour distance of the usable probes).
         far: distance stored for escaping rays.
         t_far: largest ray distance traced (the scene bounds' diagonal).
@@ -242,11 +244,11 @@ class LightFieldTracer(eqx.Module):
     row: Int[Array, " n_probes"]
     surfel_r: Float[Array, "n_rows rb rb"]
     texel_dirs: Float[Array, "rb rb 3"]
-    surfel_n: Float[Array, "n_rows rb rb 3"]
+    surfel_n: UInt16[Array, "n_rows rb rb 3"]
     has_surface: Bool[Array, "n_rows rb rb"]
     ambiguous: Bool[Array, "n_rows m m"]
-    bound_flat: Float[Array, "n_rows k"]
-    upper_flat: Float[Array, "n_rows k"]
+    bound_flat: UInt16[Array, "n_rows k"]
+    upper_flat: UInt16[Array, "n_rows k"]
     spacing: Float[Array, ""]
     far: Float[Array, ""]
     t_far: Float[Array, ""]
@@ -276,16 +278,16 @@ class LightFieldTracer(eqx.Module):
         """(points r·ω_c, normals, has-surface) of the bordered texels (rows, cols) of map row ``w``, in
         float32: the same points as r·ω_c computed at build time (one float32 product)."""
         r = self.surfel_r[w, rows, cols]
-        n = self.surfel_n[w, rows, cols].astype(jnp.float32)
+        n = _from_bf16_bits(self.surfel_n[w, rows, cols])
         return r[..., None] * self.texel_dirs[rows, cols], n, self.has_surface[w, rows, cols]
 
     def lower(self, w, flat) -> Array:
         """Lower bound of MIP entry ``flat`` of map row ``w`` (float32; never above the exact bound)."""
-        return self.bound_flat[w, flat].astype(jnp.float32) * self.far
+        return _from_bf16_bits(self.bound_flat[w, flat]) * self.far
 
     def upper(self, w, flat) -> Array:
         """Upper bound of MIP entry ``flat`` of map row ``w`` (float32; never below the exact bound)."""
-        return self.upper_flat[w, flat].astype(jnp.float32) * self.far
+        return _from_bf16_bits(self.upper_flat[w, flat]) * self.far
 
 
 class TraceResult(eqx.Module):
@@ -357,7 +359,19 @@ def _probe_cells(distance, normal, far, cones_cells, cones_texels, *, sub: int, 
     )
     # Stored compactly (LightFieldTracer): the radial distance, not the point; bfloat16 normals.
     radial = jnp.where(hb[0], jnp.asarray(distance, jnp.float32), 0.0)
-    return radial, nb[0].astype(jnp.bfloat16), hb[0], cells, wb
+    return radial, _bf16_bits(nb[0]), hb[0], cells, wb
+
+
+def _bf16_bits(x):
+    """bfloat16 values (or float32 rounded to them) as their uint16 bits, the tracer's storage: XLA:CPU
+    updates a bfloat16 buffer in place by converting all of it to float32 and back (0.16 s a 512² row:
+    stacking 128 probes took 108 s instead of 9), an integer buffer in place."""
+    return jax.lax.bitcast_convert_type(x.astype(jnp.bfloat16), jnp.uint16)
+
+
+def _from_bf16_bits(bits):
+    """float32 values of :func:`_bf16_bits`."""
+    return jax.lax.bitcast_convert_type(bits, jnp.bfloat16).astype(jnp.float32)
 
 
 def _bf16_fraction(v, far, down: bool):
@@ -378,7 +392,8 @@ def _cell_maps(lower_q, upper_q, ambiguous_q, far):
     (``_surfels.interleave_quadrants``)."""
     lower, upper, ambiguous = (interleave_quadrants(a) for a in (lower_q, upper_q, ambiguous_q))
     lo, hi = _mip_flat(lower[None], "min")[0], _mip_flat(upper[None], "max")[0]
-    return ambiguous, _bf16_fraction(lo, far, down=True), _bf16_fraction(hi, far, down=False)
+    lo, hi = _bf16_fraction(lo, far, down=True), _bf16_fraction(hi, far, down=False)
+    return ambiguous, _bf16_bits(lo), _bf16_bits(hi)
 
 
 def _probe_maps(distance, normal, far, cones_cells, cones_texels, *, sub: int, tol: float, thickness: float):
