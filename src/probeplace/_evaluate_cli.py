@@ -467,7 +467,7 @@ def run(args: argparse.Namespace) -> int:
         )
         if samples.chosen_by == "target":
             say(f"bake: {samples.spp} paths per texel ray chosen (bake_samples in metrics.json)")
-            radiance_fn = dataclasses.replace(radiance_fn, spp=samples.spp)
+        radiance_fn = samples.radiance_fn(radiance_fn)
         lf = bake_probes(scene, probes, caster=caster, radiance_fn=radiance_fn, key=k_bake, config=bake_cfg)
         if args.save_baked:
             say(f"writing {args.save_baked}")

@@ -21,11 +21,10 @@ import jax.numpy as jnp
 import numpy as np
 import pytest
 
-from probeplace._core import ConfigError, ProbeSet, ResourceError, smallest_count
+from probeplace._core import PILOT_Z, ConfigError, ProbeSet, ResourceError, smallest_count
 from probeplace.evaluate import EvalConfig, check_eval_memory, evaluate
 from probeplace.evaluate._samples import (
     COUNT_OF,
-    PILOT_Z,
     CountChoice,
     Pilot,
     choose_count,

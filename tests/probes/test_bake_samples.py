@@ -21,9 +21,8 @@ import jax.numpy as jnp
 import numpy as np
 import pytest
 
-from probeplace._core import ConfigError, ProbeSet, strip_border
+from probeplace._core import PILOT_Z, ConfigError, ProbeSet, strip_border
 from probeplace.probes import BakeConfig, bake_probes, choose_bake_spp, path_traced_radiance
-from probeplace.probes._bake_samples import PILOT_Z
 from probeplace.render import default_caster
 from probeplace.scene import load_scene
 

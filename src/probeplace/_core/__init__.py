@@ -15,9 +15,12 @@ from ._errors import ResourceError as ResourceError
 from ._errors import SceneError as SceneError
 from ._lazy import lazy_exports
 from ._samples import AUTO as AUTO  # plain Python, like the errors
+from ._samples import PILOT_Z as PILOT_Z
 from ._samples import check_count as check_count
 from ._samples import check_target as check_target
 from ._samples import is_auto as is_auto
+from ._samples import json_number as json_number
+from ._samples import mean_and_se as mean_and_se
 from ._samples import smallest_count as smallest_count
 
 # name -> the private module defining it (all but _io and _plotting import JAX)
@@ -76,6 +79,7 @@ _LAZY = {
 }
 __all__ = [
     "AUTO",
+    "PILOT_Z",
     "ConfigError",
     "ProbeplaceError",
     "ResourceError",
@@ -83,6 +87,8 @@ __all__ = [
     "check_count",
     "check_target",
     "is_auto",
+    "json_number",
+    "mean_and_se",
     "smallest_count",
     *_LAZY,
 ]

@@ -11,12 +11,18 @@ share: the value checks and the search.
 
 from __future__ import annotations
 
+import math
 from collections.abc import Callable
 
 from ._errors import ConfigError
 
 #: The value of a count field that asks for the count to be chosen from the noise target.
 AUTO = "auto"
+#: Standard errors added to a pilot's noise figure: its one-sided 95 % upper bound (normal quantile; each
+#: figure is a mean over hundreds of independent pixels or thousands of texels, so its sampling
+#: distribution is near normal). Per-pixel and per-texel variances from a few paths are skewed (a rare
+#: bright path is usually missed), so the point estimate tends to fall short of the truth.
+PILOT_Z = 1.645
 
 
 def is_auto(value) -> bool:
@@ -59,6 +65,21 @@ def check_target(owner: str, *, noise_target, pilot_spp, max_spp, min_pilot: int
             f"{owner}.max_spp must be ≥ pilot_spp ({pilot_spp}): the chosen count lies between them, "
             f"got {max_spp!r}"
         )
+
+
+def mean_and_se(values) -> tuple[float, float]:
+    """The mean of ``values`` (an array) and its standard error (sample σ / √n; 0 for one value). NumPy is
+    imported here: this module is plain Python, imported by every front door at start-up."""
+    import numpy as np
+
+    x = np.asarray(values)
+    se = float(np.std(x, ddof=1) / np.sqrt(x.size)) if x.size > 1 else 0.0
+    return float(np.mean(x)), se
+
+
+def json_number(value):
+    """``value``, or None for an infinity (JSON has none: e.g. a noise ratio of an image without signal)."""
+    return None if isinstance(value, float) and not math.isfinite(value) else value
 
 
 def smallest_count(meets: Callable[[int], bool], *, lo: int, cap: int) -> tuple[int, bool]:

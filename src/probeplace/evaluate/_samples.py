@@ -36,7 +36,7 @@ import time
 
 import numpy as np
 
-from .._core import is_auto, smallest_count
+from .._core import PILOT_Z, is_auto, json_number, mean_and_se, smallest_count
 from ._config import EvalConfig
 from ._decompose import pixel_means
 from ._steps import CrnReference, PrimarySamples, ReferenceImages, crn_reference, render_reference
@@ -45,9 +45,6 @@ log = logging.getLogger(__name__)
 
 #: The scored components whose floor a count sets, and the EvalConfig field of that count.
 COUNT_OF = {"diffuse_indirect": "spp", "glossy_indirect": "glossy_ref_spp"}
-#: Standard errors added to the pilot's floor: its one-sided 95 % upper bound (normal quantile; the
-#: floor is a mean over hundreds of independent pixels, so its sampling distribution is near normal).
-PILOT_Z = 1.645
 
 
 @dataclasses.dataclass(frozen=True)
@@ -96,8 +93,7 @@ def choose_count(pilot: Pilot, target: float, cap: int) -> tuple[int, bool]:
 def _figures(floor_px: np.ndarray, img: np.ndarray) -> tuple[float, float, float]:
     """(noise floor, its standard error over the pixels, black MSE) from the per-pixel floor (n, 3) and
     the reference image, as ``evaluate.score`` computes the floor and the black MSE."""
-    per_px = floor_px.reshape(-1, 3).mean(axis=1)
-    se = float(np.std(per_px, ddof=1) / np.sqrt(per_px.size)) if per_px.size > 1 else 0.0
+    _, se = mean_and_se(floor_px.reshape(-1, 3).mean(axis=1))  # the floor itself: over pixels and RGB
     img = np.asarray(img, np.float64)
     return float(np.mean(floor_px)), se, float(np.mean(img * img))
 
@@ -168,7 +164,7 @@ def samples_metrics(config: EvalConfig, choices: dict[str, CountChoice], metrics
     """``metrics.json``'s ``samples`` group (docs/evaluate.md): the counts, how each was chosen, the
     pilot's figures and, for every scored component, the final pass's floor ÷ black MSE (``metrics``:
     the evaluation's own ``noise_floor_*`` and ``mse_black_*``) and whether all meet the target."""
-    per = lambda f: {c: _json_number(f(choices[c])) for c in COUNT_OF}
+    per = lambda f: {c: json_number(f(choices[c])) for c in COUNT_OF}
     pilot = lambda f: per(lambda ch: None if ch.pilot is None else f(ch.pilot))
     final = {}
     for c in COUNT_OF:
@@ -190,11 +186,6 @@ def samples_metrics(config: EvalConfig, choices: dict[str, CountChoice], metrics
         "pilot_floor_over_black": pilot(lambda p: p.floor / p.black if p.black > 0 else None),
         "pilot_s": pilot(lambda p: p.seconds),
         "predicted_floor_over_black": per(lambda ch: ch.predicted),
-        "floor_over_black": {c: _json_number(v) for c, v in final.items()},
+        "floor_over_black": {c: json_number(v) for c, v in final.items()},
         "target_met": met,
     }
-
-
-def _json_number(v):
-    """``v``, or None for an infinity (an all-noise image: no count meets a target; JSON has no inf)."""
-    return None if isinstance(v, float) and not math.isfinite(v) else v

@@ -484,8 +484,6 @@ def _bake_stage(cfg: ExperimentConfig, scene, probes, key, partial: Path, timing
     settings, how its paths per texel ray were chosen (``bake_samples``; an ``"auto"`` count's pilot is
     timed with the bake) and memory; returns the baked probes and the exact caster (the evaluation's too).
     """
-    import dataclasses
-
     import jax
 
     from .._core import is_auto
@@ -520,9 +518,7 @@ def _bake_stage(cfg: ExperimentConfig, scene, probes, key, partial: Path, timing
             scene,
             probes,
             caster=caster,  # texel-centre geometry rays and the inside test, whatever the backend
-            radiance_fn=radiance_fn
-            if samples.chosen_by == "fixed"
-            else dataclasses.replace(radiance_fn, spp=samples.spp),
+            radiance_fn=samples.radiance_fn(radiance_fn),
             key=key,
             config=config,
         )

@@ -305,6 +305,12 @@ class BakeConfig:
         )
 
 
+def batch_ray_bytes(n_probes: int, res: int, n_sub: int) -> int:
+    """Working memory of one batch's radiance rays: ``n_probes`` × res² × n_sub² paths at ~200 bytes a
+    path (``BakeConfig.probes_per_batch``); the bake's and its pilot's memory checks both count it."""
+    return n_probes * res * res * n_sub**2 * 200
+
+
 def probe_bytes(scene: Scene, config: BakeConfig) -> int:
     """Bytes one baked probe holds at ``config`` (its maps as :class:`LightFieldProbes` stores them: float32
     radiance, emission, normal, distance, irradiance and moments with their one-texel borders, the distance
@@ -535,7 +541,7 @@ def bake_probes(
     # maps (radiance, emission, normal 3 floats, distance 1, kept as NumPy and as JAX copies).
     # Geometry maps: distance 1 + normal 3 floats + back-face 1 byte, and the distance MIPs (≤ 2 × 4/3).
     need = (
-        min(bsz, n) * res * res * config.n_sub**2 * 200
+        batch_ray_bytes(min(bsz, n), res, config.n_sub)
         + n * (res + 2) ** 2 * 6 * 4 * 2
         + n * (geo_res + 2) ** 2 * (4 * 4 + 1 + 4 * 3) * 2
     )

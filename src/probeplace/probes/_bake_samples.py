@@ -45,17 +45,31 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from .._core import ConfigError, ProbeSet, Scene, check_count, is_auto, smallest_count
+from .._core import (
+    PILOT_Z,
+    ConfigError,
+    ProbeSet,
+    Scene,
+    check_count,
+    is_auto,
+    json_number,
+    mean_and_se,
+    smallest_count,
+)
 from .._core._errors import check_memory
-from ._bake import BakeConfig, PathTracedRadiance, RadianceFn, default_radiance_res, texel_radiance
+from ._bake import (
+    BakeConfig,
+    PathTracedRadiance,
+    RadianceFn,
+    batch_ray_bytes,
+    default_radiance_res,
+    texel_radiance,
+)
 
 log = logging.getLogger(__name__)
 
 #: Folded into the bake's key for the pilot, so that the pilot's draws are not the bake's.
 _PILOT_STREAM = 0x5A3C
-#: Standard errors added to the pilot's noise figures: their one-sided 95 % upper bounds (normal
-#: quantile; each is a mean over thousands of independent texels).
-PILOT_Z = 1.645
 
 
 @dataclasses.dataclass(frozen=True)
@@ -96,10 +110,14 @@ class BakeSamples:
     target_met: bool | None = None
     seconds: float = 0.0
 
+    def radiance_fn(self, radiance_fn: RadianceFn) -> RadianceFn:
+        """The bake's radiance at this count: ``radiance_fn`` when the count was given, else the path
+        tracer at the chosen count (what :func:`choose_bake_spp` asks its callers to bake with)."""
+        return radiance_fn if self.chosen_by == "fixed" else dataclasses.replace(radiance_fn, spp=self.spp)
+
     def to_dict(self) -> dict:
         """The fields as JSON values (an infinite prediction, of maps without signal, as None)."""
-        inf = lambda v: isinstance(v, float) and not math.isfinite(v)
-        return {k: None if inf(v) else v for k, v in dataclasses.asdict(self).items()}
+        return {k: json_number(v) for k, v in dataclasses.asdict(self).items()}
 
 
 def predicted_relative_noise(
@@ -111,12 +129,6 @@ def predicted_relative_noise(
     if mean_sq <= 0:
         return 0.0 if v <= 0 else math.inf
     return math.sqrt(v / mean_sq)
-
-
-def _mean_se(x: np.ndarray) -> tuple[float, float]:
-    """The mean of ``x`` and its standard error."""
-    se = float(np.std(x, ddof=1) / np.sqrt(x.size)) if x.size > 1 else 0.0
-    return float(np.mean(x)), se
 
 
 def _pilot_maps(pos: np.ndarray, radiance_fn, res: int, config: BakeConfig, key) -> tuple[np.ndarray, ...]:
@@ -146,8 +158,8 @@ def choose_bake_spp(
     spp: int | str,
 ) -> BakeSamples:
     """The paths per texel ray of a bake: ``spp`` when it is an int, else chosen from
-    ``config.noise_target`` by a pilot (module docstring). Bake then with
-    ``dataclasses.replace(radiance_fn, spp=result.spp)`` and the same ``key``.
+    ``config.noise_target`` by a pilot (module docstring). Bake then with ``result.radiance_fn(radiance_fn)``
+    and the same ``key``.
 
     Args:
         scene: the scene.
@@ -179,7 +191,7 @@ def choose_bake_spp(
     p = config.pilot_spp
     batch = min(config.probes_per_batch, len(pos))
     check_memory(
-        batch * res * res * config.n_sub**2 * 200 + 3 * len(pos) * res * res * 3 * 8,
+        batch_ray_bytes(batch, res, config.n_sub) + 3 * len(pos) * res * res * 3 * 8,
         f"bake pilot of {len(pos)} probes at radiance_res={res}, n_sub={config.n_sub}",
         "lower radiance_res, n_sub or probes_per_batch",
     )
@@ -190,7 +202,7 @@ def choose_bake_spp(
     # per texel (mean over RGB): the paths' and the jitter's squared differences (module docstring)
     d_path = np.mean((a - b) ** 2 / 2, axis=-1).reshape(-1)
     d_jitter = np.mean((a - c) ** 2 / 2, axis=-1).reshape(-1) - d_path
-    (path_var, path_se), (jitter_var, jitter_se) = _mean_se(d_path), _mean_se(d_jitter)
+    (path_var, path_se), (jitter_var, jitter_se) = mean_and_se(d_path), mean_and_se(d_jitter)
     path_up, jitter_up = path_var + PILOT_Z * path_se, max(jitter_var + PILOT_Z * jitter_se, 0.0)
     mean_sq = float(np.mean(a * c))
     seconds = time.perf_counter() - t0

@@ -501,7 +501,10 @@ def make_tracer(
     usable = np.asarray(lf.active) & ~np.asarray(lf.inside)
     # The per-probe arrays of the usable probes only (issue 33: a grid in Sponza has 42 of 128 usable).
     keep = np.flatnonzero(usable)
-    check_memory(  # before the index: built on the host, then handed to JAX, twice the maps at the peak
+    # Before the index. Twice the maps, as when they were staged on the host and copied to JAX; they are
+    # now stacked in place on the device (the peak is the maps plus one probe's working arrays), and the
+    # factor is kept as the margin it has become.
+    check_memory(
         2 * tracer_bytes(len(keep), res, config.subdivide),
         f"light-field tracer of {len(keep)} usable probes at geometry_res={res}, "
         f"subdivide={config.subdivide}",
