@@ -15,11 +15,10 @@ from __future__ import annotations
 import json
 
 import jax
-import jax.numpy as jnp
 import numpy as np
 import pytest
 
-from probeplace._core import ConfigError, ProbeSet
+from probeplace._core import ConfigError
 from probeplace.evaluate import (
     EvalConfig,
     bootstrap_ci,
@@ -32,6 +31,7 @@ from probeplace.evaluate import (
 from probeplace.geometry import BruteForceCaster
 from probeplace.probes import BakeConfig, bake_probes, path_traced_radiance
 from probeplace.scene import load_scene
+from tests.helpers import albedo_lit, grid_probe_set
 
 KEYS = (
     "mse_glossy_indirect",
@@ -71,22 +71,12 @@ KEYS = (
 def cornell_eval():
     scene = load_scene("cornell_box")
     caster = BruteForceCaster(scene)
-    lo, hi = (np.asarray(b, np.float64) for b in scene.bounds)
-    axes = [(np.arange(3) + 0.5) / 3] * 3
-    pos = np.stack(np.meshgrid(*axes, indexing="ij"), -1).reshape(-1, 3) * (hi - lo) + lo
-    probes = ProbeSet(pos_world=jnp.asarray(pos, jnp.float32), active=jnp.ones(len(pos), bool))
+    probes = grid_probe_set(scene, (3, 3, 3))
     cfg = BakeConfig(
         radiance_res=16, irradiance_res=6, moments_res=8, n_sub=1, probes_per_batch=27, progress=False
     )
-    albedo = scene.materials.base_color
-
-    def albedo_lit(o, d, k):
-        # Cheap stand-in for a path-traced bake (one compile less): each surface reflects 0.3 × albedo.
-        h = caster.closest_hit(o, d)
-        rad = jnp.where((h.tri >= 0)[:, None], 0.3 * albedo[jnp.maximum(h.material, 0)], 0.0)
-        return rad.astype(o.dtype), jnp.zeros_like(o)
-
-    lf = bake_probes(scene, probes, caster=caster, radiance_fn=albedo_lit, key=jax.random.key(0), config=cfg)
+    radiance = albedo_lit(scene, caster)
+    lf = bake_probes(scene, probes, caster=caster, radiance_fn=radiance, key=jax.random.key(0), config=cfg)
     config = EvalConfig(width=12, height=10, spp=8, glossy_spp=4, glossy_ref_spp=2, timing_repeats=1)
     result = evaluate(scene, lf, view="front", config=config, caster=caster)
     return scene, lf, caster, result
@@ -280,10 +270,7 @@ def test_glossy_mse_approaches_noise_floor_with_fine_probes():
     its noise floor (the probe radiance is then limited by the bake's own noise)."""
     scene = load_scene("cornell_box")
     caster = BruteForceCaster(scene)
-    lo, hi = (np.asarray(b, np.float64) for b in scene.bounds)
-    axes = [(np.arange(4) + 0.5) / 4] * 3
-    pos = np.stack(np.meshgrid(*axes, indexing="ij"), -1).reshape(-1, 3) * (hi - lo) + lo
-    probes = ProbeSet(pos_world=jnp.asarray(pos, jnp.float32), active=jnp.ones(len(pos), bool))
+    probes = grid_probe_set(scene, (4, 4, 4))
     ratios = []
     for res in (8, 32):
         cfg = BakeConfig(radiance_res=res, n_sub=1, probes_per_batch=16, progress=False)

@@ -17,11 +17,9 @@ import logging
 import math
 
 import jax
-import jax.numpy as jnp
-import numpy as np
 import pytest
 
-from probeplace._core import PILOT_Z, ConfigError, ProbeSet, ResourceError, smallest_count
+from probeplace._core import PILOT_Z, ConfigError, ResourceError, smallest_count
 from probeplace.evaluate import EvalConfig, check_eval_memory, evaluate
 from probeplace.evaluate._samples import (
     COUNT_OF,
@@ -34,6 +32,7 @@ from probeplace.evaluate._samples import (
 from probeplace.geometry import BruteForceCaster
 from probeplace.probes import BakeConfig, bake_probes
 from probeplace.scene import load_scene
+from tests.helpers import albedo_lit, grid_probe_set
 
 #: Below the glossy pilot's own 0.04 at 8 paths (measured), so both counts are chosen above the pilot.
 TARGET = 0.03
@@ -45,23 +44,14 @@ TIMES = ("shading_s_per_frame", "shading_compile_s", "reference_s")
 def cornell():
     scene = load_scene("cornell_box")
     caster = BruteForceCaster(scene)
-    lo, hi = (np.asarray(b, np.float64) for b in scene.bounds)
-    axes = [(np.arange(2) + 0.5) / 2] * 3
-    pos = np.stack(np.meshgrid(*axes, indexing="ij"), -1).reshape(-1, 3) * (hi - lo) + lo
-    probes = ProbeSet(pos_world=jnp.asarray(pos, jnp.float32), active=jnp.ones(len(pos), bool))
+    probes = grid_probe_set(scene, (2, 2, 2))
     cfg = BakeConfig(
         radiance_res=8, irradiance_res=4, moments_res=4, n_sub=1, probes_per_batch=8, progress=False
     )
-    albedo = scene.materials.base_color
-
-    def albedo_lit(o, d, k):
-        # a stand-in for a path-traced bake (as tests/evaluate/test_evaluate.py): the probes' radiance
-        # does not enter the reference's noise, which is what is tested here
-        h = caster.closest_hit(o, d)
-        rad = jnp.where((h.tri >= 0)[:, None], 0.3 * albedo[jnp.maximum(h.material, 0)], 0.0)
-        return rad.astype(o.dtype), jnp.zeros_like(o)
-
-    lf = bake_probes(scene, probes, caster=caster, radiance_fn=albedo_lit, key=jax.random.key(0), config=cfg)
+    # a stand-in for a path-traced bake: the probes' radiance does not enter the reference's noise, which
+    # is what is tested here
+    radiance = albedo_lit(scene, caster)
+    lf = bake_probes(scene, probes, caster=caster, radiance_fn=radiance, key=jax.random.key(0), config=cfg)
     base = EvalConfig(
         width=16, height=16, glossy_spp=4, max_depth=4, timing_repeats=1, bootstrap_resamples=20
     )

@@ -21,10 +21,11 @@ import jax.numpy as jnp
 import numpy as np
 import pytest
 
-from probeplace._core import PILOT_Z, ConfigError, ProbeSet, strip_border
+from probeplace._core import PILOT_Z, ConfigError, strip_border
 from probeplace.probes import BakeConfig, bake_probes, choose_bake_spp, path_traced_radiance
 from probeplace.render import default_caster
 from probeplace.scene import load_scene
+from tests.helpers import grid_probe_set
 
 TARGET = 0.1
 
@@ -33,10 +34,7 @@ TARGET = 0.1
 def setup():
     scene = load_scene("cornell_box")
     caster = default_caster(scene)
-    lo, hi = (np.asarray(b, np.float64) for b in scene.bounds)
-    axes = [(np.arange(2) + 0.5) / 2] * 3
-    pos = np.stack(np.meshgrid(*axes, indexing="ij"), -1).reshape(-1, 3) * (hi - lo) + lo
-    probes = ProbeSet(pos_world=jnp.asarray(pos, jnp.float32), active=jnp.ones(len(pos), bool))
+    probes = grid_probe_set(scene, (2, 2, 2))
     config = BakeConfig(
         radiance_res=16,
         n_sub=4,

@@ -16,7 +16,7 @@ import jax.numpy as jnp
 import numpy as np
 import pytest
 
-from probeplace._core import ConfigError, ProbeSet
+from probeplace._core import ConfigError
 from probeplace.geometry import BruteForceCaster, make_caster
 from probeplace.probes import BakeConfig, bake_probes
 from probeplace.probes._index import voxel_index
@@ -29,7 +29,7 @@ from probeplace.probes._trace import (
     trace_light_field,
 )
 from probeplace.scene import load_scene
-from tests.helpers import shared_scene_path
+from tests.helpers import grid_probe_set, shared_scene_path
 
 RES = 32  # geometry maps: small, so the bakes and traces stay quick on two CPU cores
 INT_FIELDS = ("status", "probe", "texel", "steps", "probes_tried", "fallback")
@@ -41,11 +41,9 @@ def _const(o, d, k):
 
 
 def _bake_grid(scene, dims, caster, geometry_res=None):
-    """Probes at the centres of a ``dims`` grid of cells over the scene bounds (as benchmarks/tracer.py)."""
-    lo, hi = (np.asarray(b, np.float64) for b in scene.bounds)
-    axes = [(np.arange(n) + 0.5) / n for n in dims]
-    pos = np.stack(np.meshgrid(*axes, indexing="ij"), -1).reshape(-1, 3) * (hi - lo) + lo
-    probes = ProbeSet(pos_world=jnp.asarray(pos, jnp.float32), active=jnp.ones(len(pos), bool))
+    """Probes at the centres of a ``dims`` grid of cells over the scene bounds, baked with constant
+    radiance."""
+    probes = grid_probe_set(scene, dims)
     cfg = BakeConfig(
         radiance_res=RES, geometry_res=geometry_res, irradiance_res=4, moments_res=4, n_sub=1, progress=False
     )
