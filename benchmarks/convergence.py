@@ -2,7 +2,7 @@
 
     .venv/bin/python benchmarks/convergence.py [--quick] [--scenes cornell sponza] [--bake-spp N]
         [--n-sub N] [--res 16 32 64] [--grids 4x4x4 8x4x4] [--seeds 3] [--fresh] [--geometry-res N]
-        [--backend jax|mitsuba]
+        [--backend jax|mitsuba] [--no-auto] [--no-costs]
 
 For each scene (Cornell box "front", Crytek Sponza "CameraMain"), uniform grids of increasing density
 (cell centres of the scene box) × radiance-map resolutions, baked with the path tracer
@@ -13,7 +13,20 @@ parts (perfect trace, trace share and ``trace_excess``, split by ray status, res
 black images, agreement of resolved hits with the exact distance, unresolved share, 95 % intervals, bake
 time (compile apart: a one-batch warm-up first), ``make_tracer`` time (``make_tracer_s``, with
 ``usable_probes``: the tracer's set-up, issue 33) and shading time (compile apart; ``--trace-engine``,
-default the runner's ``wavefront``).
+default the runner's ``wavefront``), and the unresolved share among the glossy rays whose origin one of
+the K nearest usable probes sees (``unresolved_seen``: the evaluation's ``unresolved_seen_share``; the
+share of such rays is ``origin_seen``).
+
+Besides the grids, Sponza has one cell for the automatic skeleton set (``--no-auto`` skips it): the probes
+``placement.place(scene, method="skeleton", budget="auto", seed=0)`` places (Wang 2019's skeleton seeds,
+the fewest that reach full coverage; the runner's ``method=skeleton placer.budget=auto``, and
+``probeplace place crytek_sponza --method skeleton``), baked and evaluated exactly as a grid cell (same
+bake settings, geometry resolution and shared steps) at the run's finest Sponza radiance resolution. It
+is not a grid, so the tracer indexes it with ``voxel_index``. Its figures, ``sponza_auto_r{R}_…`` and
+``sponza_auto_g{G}_…`` (``unresolved``, ``unresolved_seen``, ``agreement``, ``glossy_over_black``,
+``n_probes``, ``n_probes_usable``, …), stand beside the grids'. The placement is cached in
+``convergence_cells/`` as well (its name and the cell's settings carry the method, budget and placement
+seed); the cell records its time (``place_s``) and coverage.
 
 The reference, the primary samples and the CRN glossy reference depend only on (scene, evaluation
 settings, seed): they are computed once per scene and seed with the evaluation's public steps
@@ -33,7 +46,7 @@ a reason in ``skipped``. Last stdout line: the JSON, also written to benchmarks/
 Issue 33 (the instrument at the papers' resolution, run with ``--geometry-res 512``): every cell's figures
 also under ``{scene}_{grid}_g{G}_…`` (G the geometry maps' resolution); targets
 ``cornell_4x4x4_g512_mse_over_floor`` ≤ 1.3, ``sponza_16x8x8_g512_agreement`` ≥ 0.95, ``_unresolved_seen``
-≤ 0.03 (not measured yet: null with the reason), ``_trace_excess`` ≤ 0.2, ``_glossy_over_black`` < 1,
+≤ 0.03 (null with the reason when the cell did not run), ``_trace_excess`` ≤ 0.2, ``_glossy_over_black`` < 1,
 ``sponza_grid_seed_spread`` ≤ 0.05 (the 8×4×4 grid's seed_cv), and the set-up costs of 128 usable probes
 on a line through Sponza's atrium, ``make_tracer_128_g512_s`` ≤ 10 and ``geometry_bake_128_g512_s`` ≤ 10
 (warm, compile apart; ``--no-costs`` skips them), with ``tracer_mb_per_probe_g512``.
@@ -94,16 +107,29 @@ TARGETS = {
     "make_tracer_128_g512_s": (10.0, "<="),
     "geometry_bake_128_g512_s": (10.0, "<="),
 }
+#: The automatic skeleton set's cell (Sponza; module docstring): its name among the grids and how it is
+#: placed (``placement.place``'s arguments; the placement seed is the cell's seed).
+AUTO = "auto"
+AUTO_PLACEMENT = {"method": "skeleton", "budget": "auto"}
+#: Figures of every cell reported at the top level as ``{scene}_{grid}_r{R}_…`` and ``…_g{G}_…``.
+CELL_FIGURES = (
+    "mse_over_floor", "agreement", "unresolved", "unresolved_seen", "origin_seen", "trace_excess",
+    "glossy_over_black", "diffuse_over_black", "bake_s", "make_tracer_s", "usable_probes",
+    "shading_s_per_frame", "n_probes", "n_probes_usable",
+)  # fmt: skip
+#: The automatic skeleton set's figures reported beside the grid's (``sponza_auto_g{G}_…``).
+AUTO_FIGURES = (
+    "unresolved",
+    "unresolved_seen",
+    "agreement",
+    "glossy_over_black",
+    "n_probes",
+    "n_probes_usable",
+)
 #: issue 33's figures without a target, reported beside the grid's.
-REPORTED = ("sponza_8x4x4_g512_agreement", "sponza_auto_g512_unresolved")
-#: figures not measured yet, with why (reported null, the reason in ``skipped``).
-NOT_MEASURED = {
-    "sponza_16x8x8_g512_unresolved_seen": "not measured yet: needs, per glossy ray, whether some usable "
-    "probe sees its origin (the tracer's visibility test over every ray's origin); the plain unresolved "
-    "share is reported as sponza_16x8x8_g512_unresolved",
-    "sponza_auto_g512_unresolved": "not measured yet: the automatic skeleton set is not placed by this "
-    "benchmark (benchmarks/equal_count.py places it)",
-}
+REPORTED = ("sponza_8x4x4_g512_agreement", *(f"sponza_{AUTO}_g512_{f}" for f in AUTO_FIGURES))
+#: figures not measured yet, with why (reported null, the reason in ``skipped``); none at present.
+NOT_MEASURED: dict[str, str] = {}
 
 
 def log(msg: str) -> None:
@@ -198,12 +224,12 @@ class Bench:
         a = self.args
         return max(res, a.geometry_res) if a.geometry_res else a.geometry_factor * res
 
-    def bake(self, dims, res: int, seed: int):
+    def bake(self, pos: np.ndarray, res: int, seed: int):
+        """Bake the probes at ``pos`` as every cell is baked: (probes, bake times)."""
         from probeplace._core import ProbeSet
         from probeplace.probes import BakeConfig, bake_probes, path_traced_radiance
 
         a = self.args
-        pos = grid_positions(self.scene, dims)
         geo = self.geometry_res(res)
         # ~2^18 radiance rays and ~2^21 geometry rays a batch (at 512² geometry: 8 probes)
         per_batch = int(max(1, min(len(pos), (1 << 18) // (res * res * a.n_sub**2), (1 << 21) // geo**2)))
@@ -243,9 +269,40 @@ class Bench:
             "bake_compile_s": max(warm_s - bake_s / n_batches, 0.0) if warm_s else 0.0,
         }
 
+    def auto_positions(self, seed: int) -> tuple[np.ndarray, dict]:
+        """The automatic skeleton set (``AUTO_PLACEMENT``, placement seed ``seed``): positions and the
+        placement's record (time, coverage), cached in ``CELLS`` like a cell."""
+        key = {"scene": self.scene.name, **AUTO_PLACEMENT, "seed": seed}
+        digest = hashlib.sha1(json.dumps(key, sort_keys=True).encode()).hexdigest()[:10]
+        method, budget = AUTO_PLACEMENT["method"], AUTO_PLACEMENT["budget"]
+        path = CELLS / f"{self.key}_place_{method}_{budget}_s{seed}_{digest}.json"
+        if path.exists() and not self.args.fresh:
+            log(f"{path.name}: cached")
+            rec = json.loads(path.read_text())
+            return np.asarray(rec.pop("positions"), np.float64), rec
+        from probeplace.placement import place
+
+        log(f"{self.key}: placing the automatic skeleton set ({AUTO_PLACEMENT}, seed {seed})")
+        t0 = time.perf_counter()
+        placed = place(self.scene, **AUTO_PLACEMENT, seed=seed)
+        place_s = time.perf_counter() - t0
+        pos = np.asarray(placed.probes.pos_world, np.float64)[np.asarray(placed.probes.active)]
+        rec = key | {
+            "place_s": place_s,
+            "coverage": placed.coverage,
+            "target_reached": placed.target_reached,
+            "n_placed": len(pos),
+        }
+        write_text_atomic(path, json.dumps(rec | {"positions": pos.tolist()}, indent=1, sort_keys=True))
+        log(f"{self.key}: placed {len(pos)} probes in {place_s:.1f} s, coverage {placed.coverage:.4f}")
+        return pos, rec
+
     def cell(self, grid: str, res: int, seed: int) -> dict:
-        """One cell's figures, from the cache when present."""
+        """One cell's figures, from the cache when present: a grid (``NxMxK``) or the automatic skeleton
+        set (``AUTO``; its placement seed is ``seed``)."""
         settings = self.settings() | {"grid": grid, "res": res, "seed": seed}
+        if grid == AUTO:
+            settings["placement"] = AUTO_PLACEMENT | {"seed": seed}
         digest = hashlib.sha1(json.dumps(settings, sort_keys=True).encode()).hexdigest()[:10]
         path = CELLS / f"{self.key}_{grid}_r{res}_s{seed}_{digest}.json"
         if path.exists() and not self.args.fresh:
@@ -254,14 +311,21 @@ class Bench:
         from probeplace.evaluate import perfect_trace, score, shade_probes
         from probeplace.probes import check_bake_settings, glossy_maps, make_tracer
 
-        log(f"{self.key} {grid} r{res} seed {seed}: baking {int(np.prod(dims_of(grid)))} probes")
-        lf, times = self.bake(dims_of(grid), res, seed)
+        placement = {}
+        if grid == AUTO:
+            pos, placement = self.auto_positions(seed)
+        else:
+            pos = grid_positions(self.scene, dims_of(grid))
+        log(f"{self.key} {grid} r{res} seed {seed}: baking {len(pos)} probes")
+        lf, times = self.bake(pos, res, seed)
         log(f"{self.key} {grid} r{res} seed {seed}: baked in {times['bake_s']:.1f} s; evaluating")
         ref, prim, crn, _ = self.steps(seed)
         check_bake_settings(lf, scene_name=self.scene.name, eval_max_depth=self.config.max_depth)
         t0 = time.perf_counter()
-        make_tracer(lf, self.scene.bounds, config=self.config.trace)  # timed alone: issue 33's figure
+        tracer = make_tracer(lf, self.scene.bounds, config=self.config.trace)  # timed alone (issue 33)
         tracer_s = time.perf_counter() - t0
+        index_kind = type(tracer.index).__name__  # a grid's GridIndex, any other set's VoxelIndex
+        del tracer  # shade_probes builds its own: not two at once
         t0 = time.perf_counter()
         maps = glossy_maps(lf, self.config.glossy_filter, include_emission=False)
         shading = shade_probes(self.scene, lf, prim, self.config, maps=maps)
@@ -271,12 +335,15 @@ class Bench:
         out |= {
             "make_tracer_s": tracer_s,
             "usable_probes": int((np.asarray(lf.active) & ~np.asarray(lf.inside)).sum()),
+            "tracer_index": index_kind,
         }
+        if placement:
+            out |= {"place_s": placement["place_s"], "placement": placement}
         write_text_atomic(path, json.dumps(out, indent=1, sort_keys=True))
         log(
             f"{self.key} {grid} r{res} seed {seed}: glossy {out['mse_glossy']:.3g} (floor "
             f"{out['noise_floor_glossy']:.3g}, perfect {out['mse_glossy_perfect_trace']:.3g}), unresolved "
-            f"{out['unresolved']:.3f}, agreement {out['agreement']}"
+            f"{out['unresolved']:.3f} (origin seen: {out['unresolved_seen']}), agreement {out['agreement']}"
         )
         return out
 
@@ -302,6 +369,8 @@ def summarise(m: dict) -> dict:
         "status_share": m["glossy_status_share"],
         "agreement": m["glossy_hit_agreement"],
         "unresolved": m["unresolved_share"],
+        "origin_seen": m["origin_seen_share"],
+        "unresolved_seen": m["unresolved_seen_share"],
         "perfect_trace_fallback_share": m["perfect_trace_fallback_share"],
         "mse_black_glossy": m["mse_black_glossy_indirect"],
         "glossy_over_black": ratio(m["mse_glossy_indirect"], m["mse_black_glossy_indirect"]),
@@ -319,6 +388,23 @@ def summarise(m: dict) -> dict:
     }
 
 
+def report_cell(result: dict, name: str, res: int, geo: int, c: dict) -> dict:
+    """Put a cell's figures at the top level of ``result`` as ``{name}_r{res}_…`` and, by geometry
+    resolution (issue 33's keys: the tracer's resolution is the geometry maps'), ``{name}_g{geo}_…`` (the
+    last cell run at that geometry: the finest radiance). A figure the cell lacks (cached before it was
+    recorded) is null, with the reason in ``skipped``. Returns ``c``."""
+    for f in (*CELL_FIGURES, "mse_glossy_perfect_trace", "view_dependence_over_black"):
+        for k in (f"{name}_r{res}_{f}", f"{name}_g{geo}_{f}"):
+            result[k] = c.get(f)
+            if f not in c:
+                result["skipped"][k] = (
+                    "the cell was cached before this figure was recorded: rerun with --fresh"
+                )
+            else:
+                result["skipped"].pop(k, None)
+    return c
+
+
 def run_scene(key: str, args, plan: dict, result: dict) -> None:
     try:
         b = Bench(key, args, plan["eval"])
@@ -329,27 +415,18 @@ def run_scene(key: str, args, plan: dict, result: dict) -> None:
     cells = {}
     for grid in plan["grids"]:
         for res in plan["res"]:
-            c = b.cell(grid, res, 0)
-            cells[f"{grid}_r{res}"] = c
-            for f in ("mse_over_floor", "agreement", "unresolved", "trace_excess"):
-                result[f"{key}_{grid}_r{res}_{f}"] = c[f]
-            # the instrument's costs (issue 33); null for a cell cached before they were recorded
-            for f in ("bake_s", "make_tracer_s", "usable_probes", "shading_s_per_frame"):
-                result[f"{key}_{grid}_r{res}_{f}"] = c.get(f)
-            for f in (
-                "glossy_over_black",
-                "diffuse_over_black",
-                "mse_glossy_perfect_trace",
-                "view_dependence_over_black",
-            ):
-                result[f"{key}_{grid}_r{res}_{f}"] = c[f]
-            # The same figures by geometry resolution (issue 33's keys: the tracer's resolution is the
-            # geometry maps'), for the finest radiance run at that geometry.
-            geo = b.geometry_res(res)
-            for f in ("mse_over_floor", "agreement", "unresolved", "trace_excess", "glossy_over_black",
-                      "diffuse_over_black", "bake_s", "make_tracer_s", "usable_probes",
-                      "shading_s_per_frame"):  # fmt: skip
-                result[f"{key}_{grid}_g{geo}_{f}"] = c.get(f)
+            cells[f"{grid}_r{res}"] = report_cell(
+                result, f"{key}_{grid}", res, b.geometry_res(res), b.cell(grid, res, 0)
+            )
+    if key == "sponza" and args.no_auto:
+        for f in AUTO_FIGURES:
+            k = f"sponza_{AUTO}_g{b.geometry_res(max(plan['res']))}_{f}"
+            result[k], result["skipped"][k] = None, "--no-auto"
+    elif key == "sponza":  # the automatic skeleton set, at the finest radiance resolution of the run
+        res = max(plan["res"])
+        cells[f"{AUTO}_r{res}"] = report_cell(
+            result, f"{key}_{AUTO}", res, b.geometry_res(res), b.cell(AUTO, res, 0)
+        )
     result["cells"][key] = cells
     result["shared_steps_s"][key] = {str(s): v[3] for s, v in b.shared.items()}
     if key == "sponza":  # the 128-probe grid over seeds
@@ -460,6 +537,12 @@ def main(argv=None) -> dict:
     ap.add_argument("--seeds", type=int, default=3, help="bake + evaluation seeds of the 128-probe grid")
     ap.add_argument("--grid128-res", type=int, default=None, help="its map resolution (default 64; quick 16)")
     ap.add_argument("--fresh", action="store_true", help="recompute cached cells")
+    ap.add_argument(
+        "--no-auto",
+        action="store_true",
+        help="skip Sponza's cell of the automatic skeleton set (placement.place(method='skeleton', "
+        "budget='auto'); minutes to place)",
+    )
     ap.add_argument(
         "--no-costs",
         action="store_true",

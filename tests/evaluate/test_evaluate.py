@@ -42,6 +42,8 @@ KEYS = (
     "noise_floor_full",
     "light_leak_energy",
     "unresolved_share",
+    "origin_seen_share",
+    "unresolved_seen_share",
     "shading_s_per_frame",
     "shading_compile_s",
     "memory_bytes",
@@ -132,6 +134,11 @@ def test_metrics_invariants(cornell_eval):
     for k in ("noise_floor_glossy_indirect", "noise_floor_diffuse_indirect", "noise_floor_full"):
         assert m[k] > 0, k
     assert 0.0 <= m["unresolved_share"] <= 1.0
+    # the unresolved share splits over rays whose origin a probe sees (share s) and the rest:
+    # s·u_seen ≤ unresolved ≤ s·u_seen + (1 − s)
+    s, u_seen = m["origin_seen_share"], m["unresolved_seen_share"]
+    assert 0.0 < s <= 1.0 and 0.0 <= u_seen <= 1.0  # a 3×3×3 grid in the open box sees most origins
+    assert s * u_seen - 1e-12 <= m["unresolved_share"] <= s * u_seen + (1 - s) + 1e-12
     assert m["shading_s_per_frame"] > 0 and m["shading_compile_s"] >= 0
     mem = m["memory_bytes"]
     assert mem["total"] == sum(mem["by_map"].values())

@@ -26,6 +26,7 @@ from probeplace._core import (
     LightFieldProbes,
     ProbeSet,
     add_border,
+    pack_normal,
     sample_bilinear,
     sample_nearest,
     strip_border,
@@ -89,19 +90,16 @@ def _synthetic_lf(pos, res=16, far=20.0):
     every texel's surface at distance ``far`` (so every receiver is visible), irradiance π·L."""
     n = len(pos)
     ones = lambda *shape: jnp.ones((n, *shape), jnp.float32)
-    mips = tuple(far * ones(res >> k, res >> k) for k in range(1, res.bit_length()))
     return LightFieldProbes(
         pos_world=jnp.asarray(pos, jnp.float32),
         active=jnp.ones(n, bool),
         inside=jnp.zeros(n, bool),
         radiance=L_CONST * ones(res + 2, res + 2, 3),
         emission=0.0 * ones(res + 2, res + 2, 3),
-        normal=0.0 * ones(res + 2, res + 2, 3),
+        normal16=pack_normal(0.0 * ones(res + 2, res + 2, 3)),
         distance=far * ones(res + 2, res + 2),
         irradiance=np.pi * L_CONST * ones(6, 6, 3),
         moments=jnp.concatenate([far * ones(10, 10, 1), far * far * ones(10, 10, 1)], axis=-1),
-        distance_min_mips=mips,
-        distance_max_mips=mips,
         far=jnp.float32(far),
     )
 

@@ -14,7 +14,7 @@ import jax.numpy as jnp
 import numpy as np
 import pytest
 
-from probeplace._core import ConfigError, ProbeSet, oct_decode, texel_directions
+from probeplace._core import ConfigError, ProbeSet, oct_decode, pack_normal, texel_directions
 from probeplace.geometry import BruteForceCaster
 from probeplace.probes import BakeConfig, bake_probes
 from probeplace.probes._index import VoxelIndex
@@ -135,7 +135,7 @@ def test_surfel_side_is_judged_from_the_probe(room):
     """Front/back is judged with the normal turned toward the probe: probes whose normal maps all point
     the other way (raw normals of sheets seen from behind, or a bake that turned them) trace the same."""
     scene, lf = room
-    flipped = eqx.tree_at(lambda x: x.normal, lf, -lf.normal)
+    flipped = eqx.tree_at(lambda x: x.normal16, lf, pack_normal(-lf.normal))
     o = jnp.asarray([2.0, 1.5, 2.5], jnp.float32)
     d = jnp.asarray(_unit(np.random.default_rng(2).normal(size=(50, 3))), jnp.float32)
     f = jax.vmap(
@@ -172,7 +172,7 @@ def test_quad_seen_from_behind_is_hit(quad_from_behind, flip_normals):
     has turned the stored normal toward the probe."""
     scene, lf = quad_from_behind
     if flip_normals:
-        lf = eqx.tree_at(lambda x: x.normal, lf, -lf.normal)
+        lf = eqx.tree_at(lambda x: x.normal16, lf, pack_normal(-lf.normal))
     n_up = np.asarray(scene.vertices)[np.asarray(scene.faces)]
     n_up = np.cross(n_up[:, 1] - n_up[:, 0], n_up[:, 2] - n_up[:, 0])
     assert np.all(n_up[:, 2] > 0)  # the winding faces away from the probe
@@ -346,7 +346,7 @@ def test_geometry_maps_need_not_match_the_radiance_resolution(room):
     32² geometry trace exactly as the 32² bake, and the texel indexes the geometry map."""
     scene, lf32 = room
     lf16 = _bake(scene, np.asarray(lf32.pos_world), 16)
-    mixed = eqx.tree_at(lambda x: (x.distance, x.normal), lf16, (lf32.distance, lf32.normal))
+    mixed = eqx.tree_at(lambda x: (x.distance, x.normal16), lf16, (lf32.distance, lf32.normal16))
     if getattr(lf16, "backface", None) is not None:
         mixed = eqx.tree_at(lambda x: x.backface, mixed, lf32.backface)
     assert mixed.radiance_res == 16

@@ -58,6 +58,7 @@ _LAZY = {
         ),
         "_octahedral",
     ),
+    **dict.fromkeys(("pack_normal", "unpack_normal"), "_packed"),
     "load_pyplot": "_plotting",
     **dict.fromkeys(("host_rng", "stream"), "_random"),
     **dict.fromkeys(("PROBE_SET_FORMAT", "load_probe_set", "save_probe_set"), "_probe_io"),
@@ -121,6 +122,8 @@ if TYPE_CHECKING:  # what static checkers and IDEs see; __getattr__ gives the sa
     from ._octahedral import texel_of_direction as texel_of_direction
     from ._octahedral import texel_solid_angles as texel_solid_angles
     from ._octahedral import texel_uv as texel_uv
+    from ._packed import pack_normal as pack_normal
+    from ._packed import unpack_normal as unpack_normal
     from ._plotting import load_pyplot as load_pyplot
     from ._probe_io import PROBE_SET_FORMAT as PROBE_SET_FORMAT
     from ._probe_io import load_probe_set as load_probe_set

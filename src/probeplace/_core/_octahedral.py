@@ -24,7 +24,7 @@ from functools import partial
 
 import jax
 import jax.numpy as jnp
-from jaxtyping import Array, Float, Int
+from jaxtyping import Array, Float, Int, Shaped
 
 from ._math import safe_normalize
 
@@ -118,7 +118,7 @@ def border_index(res: int) -> tuple[Int[Array, "rb rb"], Int[Array, "rb rb"]]:
 
 
 @jax.jit
-def add_border(interior: Float[Array, "... res res c"]) -> Float[Array, "... rb rb c"]:
+def add_border(interior: Shaped[Array, "... res res c"]) -> Shaped[Array, "... rb rb c"]:
     """Pad R×R interior maps (leading batch axes allowed, channel axis last) to (R+2)×(R+2)."""
     res = interior.shape[-2]
     if interior.shape[-3] != res:
@@ -127,7 +127,7 @@ def add_border(interior: Float[Array, "... res res c"]) -> Float[Array, "... rb 
     return interior[..., rows, cols, :]
 
 
-def strip_border(bordered: Float[Array, "... rb rb c"]) -> Float[Array, "... res res c"]:
+def strip_border(bordered: Shaped[Array, "... rb rb c"]) -> Shaped[Array, "... res res c"]:
     """Inverse of :func:`add_border`: the interior texels."""
     return bordered[..., 1:-1, 1:-1, :]
 

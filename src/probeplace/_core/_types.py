@@ -14,6 +14,7 @@ import numpy as np
 from jaxtyping import Array, Bool, Float, Int, UInt32
 
 from ._errors import ConfigError
+from ._packed import unpack_normal
 
 
 def _check_last(name: str, x, tail: tuple[int, ...]) -> None:
@@ -338,18 +339,18 @@ class LightFieldProbes(eqx.Module):
             ray escapes.
         emission: radiance emitted toward the probe by that surface, or the sky (and sun) radiance where
             the ray escapes: what a camera at the probe would call "emission" (docs/render.md).
-        normal: unit shading normal of that surface, *oriented toward the probe* (``dot(n, −ω) > 0``
-            for the texel direction ω: the side the probe sees, whatever the triangle's winding); zeros
-            where the ray escapes.
+        normal16: the unit shading normal of that surface, *oriented toward the probe* (``dot(n, −ω) > 0``
+            for the texel direction ω: the side the probe sees, whatever the triangle's winding), as two
+            octahedral snorm16 components (``_core.pack_normal``); read it as float32 with
+            :attr:`normal` (zeros where the ray escapes) or :meth:`normal_at`.
         backface: True where the probe sees that surface's back side by its geometric normal (winding),
             so a one-sided sheet seen from behind can still be told; False where the ray escapes.
-        distance: radial distance to that surface; ``far`` where the ray escapes. The geometry maps
-            (``distance``, ``normal``, ``backface`` and the distance MIPs) may have their own resolution,
-            finer than the radiance maps' (``probes.BakeConfig.geometry_res``).
+        distance: radial distance to that surface (float32); ``far`` where the ray escapes. The geometry
+            maps (``distance``, ``normal16``, ``backface``) may have their own resolution, finer than the
+            radiance maps' (``probes.BakeConfig.geometry_res``). The tracer builds its own min/max pyramids
+            from them (``probes.make_tracer``), so none is stored here.
         irradiance: cosine-convolved irradiance E(n) for a receiver normal n = texel direction.
         moments: cosine-power filtered E[r] and E[r²] (McGuire §5.2), for the Chebyshev visibility test.
-        distance_min_mips: min-MIP chain of the interior distance map, level 1 (R/2) … coarsest.
-        distance_max_mips: max-MIP chain, same levels (Wang 2019 §4.2 hi-Z uses both bounds).
         far: the distance stored for escaping rays (a finite value beyond the scene).
         bake: how the probes were baked (:class:`BakeSettings`); ``None`` for probes built by hand or
             read from a file that predates recorded settings (the evaluation refuses those).
@@ -360,27 +361,47 @@ class LightFieldProbes(eqx.Module):
     inside: Bool[Array, " n_probes"]
     radiance: Float[Array, "n_probes rb rb 3"]
     emission: Float[Array, "n_probes rb rb 3"]
-    normal: Float[Array, "n_probes gb gb 3"]
+    normal16: Int[Array, "n_probes gb gb 2"]
     distance: Float[Array, "n_probes gb gb"]
     irradiance: Float[Array, "n_probes ib ib 3"]
     moments: Float[Array, "n_probes mb mb 2"]
-    distance_min_mips: tuple[Float[Array, "n_probes _ _"], ...]
-    distance_max_mips: tuple[Float[Array, "n_probes _ _"], ...]
     far: Float[Array, ""]
     backface: Bool[Array, "n_probes gb gb"] | None = None
     bake: BakeSettings | None = None
 
     def __check_init__(self):
         _check_last("pos_world", self.pos_world, (3,))
-        for name in ("radiance", "emission", "normal", "distance", "irradiance", "moments"):
+        for name in ("radiance", "emission", "normal16", "distance", "irradiance", "moments"):
             m = getattr(self, name)
             if m.shape[-3 if m.ndim == 4 else -2] != m.shape[-2 if m.ndim == 4 else -1]:
                 raise ValueError(f"{name} maps must be square, got {tuple(m.shape)}")
+        _check_last("normal16", self.normal16, (2,))
+        if self.normal16.dtype != jnp.int16:
+            raise ValueError(f"normal16 must be int16 (_core.pack_normal), got {self.normal16.dtype}")
+        if self.normal16.shape[:-1] != self.distance.shape:
+            raise ValueError(
+                f"normal16 {tuple(self.normal16.shape)} must match distance {tuple(self.distance.shape)}"
+            )
         if self.backface is not None and self.backface.shape != self.distance.shape:
             raise ValueError(
                 f"backface must have the distance map's shape {tuple(self.distance.shape)}, "
                 f"got {tuple(self.backface.shape)}"
             )
+
+    @property
+    def normal(self) -> Float[Array, "n_probes gb gb 3"]:
+        """Every normal map as float32 unit vectors (zeros where the ray escapes): 12 bytes a texel, so
+        read one probe's rows or single texels (:meth:`normal_at`) where the set is large."""
+        return unpack_normal(self.normal16, self.distance >= self.far)
+
+    def normal_at(self, *index) -> Array:
+        """The float32 normals of the texels ``normal16[index]`` (gathered, then unpacked)."""
+        return unpack_normal(self.normal16[index], self.distance[index] >= self.far)
+
+    @property
+    def geometry_res(self) -> int:
+        """Interior (borderless) resolution of the geometry maps (distance, normal, back face)."""
+        return int(self.distance.shape[-1]) - 2
 
     @property
     def radiance_res(self) -> int:

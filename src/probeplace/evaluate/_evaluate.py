@@ -40,7 +40,9 @@ Protocol (docs/evaluate.md):
 * **The glossy error taken apart** (``_decompose.py``): the perfect trace (exact hit, radiance read from
   the probes there: the representation floor) and the trace's share; the MSE split additively by ray
   status (hit / miss / unresolved) and the resolved rays scored apart; agreement of resolved hits with
-  the exact distance. Every MSE also gets a relative MSE and a 95% bootstrap interval over pixels.
+  the exact distance; the unresolved share also among the rays whose origin one of the K nearest usable
+  probes sees (``probes.origins_seen``: the tracer's own visibility test at the origin). Every MSE also
+  gets a relative MSE and a 95% bootstrap interval over pixels.
 
 The steps are public (``_steps.py``): ``render_reference``, ``sample_primary``, ``crn_reference``,
 ``shade_probes``, ``perfect_trace``, then :func:`score`.
@@ -107,16 +109,16 @@ class EvalResult:
 def memory_bytes(lf: LightFieldProbes, subdivide: int) -> dict:
     """Probe memory as stored (Wang 2019 Table 2 style): total, per probe and by map, in bytes; and the
     light-field tracer's maps per usable probe at ``subdivide`` (``probes.tracer_bytes``)."""
+    stored = {"normal": "normal16"}  # two int16 components (_core._packed)
     by_map = {
-        name: int(np.asarray(getattr(lf, name)).nbytes)
+        name: int(getattr(lf, stored.get(name, name)).nbytes)
         for name in ("radiance", "emission", "normal", "distance", "irradiance", "moments")
     }
-    by_map["mips"] = int(sum(np.asarray(a).nbytes for a in (*lf.distance_min_mips, *lf.distance_max_mips)))
     if lf.backface is not None:
-        by_map["backface"] = int(np.asarray(lf.backface).nbytes)
+        by_map["backface"] = int(lf.backface.nbytes)
     total = sum(by_map.values())
     n = int(lf.pos_world.shape[0])
-    tracer = tracer_bytes(1, int(lf.distance.shape[-1]) - 2, subdivide)
+    tracer = tracer_bytes(1, lf.geometry_res, subdivide)
     return {
         "total": total,
         "per_probe": total / max(n, 1),
@@ -228,6 +230,7 @@ def _glossy_breakdown(scene, config: EvalConfig, prim, crn, shading, perfect, im
     return {
         "glossy_rays": n_gl,
         "unresolved_share": float(np.mean(st[gl] == RAY_UNRESOLVED)) if n_gl else 0.0,
+        **_seen_shares(st, shading.origin_seen),
         "mse_glossy_perfect_trace": terms["mse_perfect_trace"],
         # What even exact probes storing view-independent radiance miss: the specular lobe of the surface a
         # glossy ray hits, toward the viewer (the CRN reference without that lobe, _steps.py).
@@ -249,6 +252,18 @@ def _glossy_breakdown(scene, config: EvalConfig, prim, crn, shading, perfect, im
         "ci95_mse_glossy_indirect": boot(terms["sq_px"]),
         "ci95_mse_glossy_perfect_trace": boot(terms["sq_px_perfect"]),
         "ci95_mse_glossy_trace_share": boot(terms["sq_px"] - terms["sq_px_perfect"]),
+    }
+
+
+def _seen_shares(status: np.ndarray, seen: np.ndarray) -> dict:
+    """The share of glossy rays whose origin one of the K nearest usable probes sees
+    (``ProbeShading.origin_seen``), and the unresolved share among those rays (None when there are none)."""
+    gl = status >= 0
+    n_gl, seen_gl = int(gl.sum()), gl & seen
+    n_seen = int(seen_gl.sum())
+    return {
+        "origin_seen_share": n_seen / n_gl if n_gl else 0.0,
+        "unresolved_seen_share": float(np.mean(status[seen_gl] == RAY_UNRESOLVED)) if n_seen else None,
     }
 
 

@@ -20,6 +20,7 @@ import numpy as np
 from jaxtyping import Array, Float
 
 from .._core import Camera, LightFieldProbes, Scene, scene_box
+from ..probes import origins_seen
 from ..probes._bake import bake_depth_for
 from ..probes._glossy import glossy_maps, glossy_trace, perfect_trace_radiance
 from ..probes._shade import sh_coefficients, shade_irradiance
@@ -96,14 +97,16 @@ class CrnReference:
 @dataclasses.dataclass(frozen=True)
 class ProbeShading:
     """Per sample: irradiance E (zeros where invalid), glossy radiance, tracer status (``NO_RAY`` where
-    there is no glossy ray), light-field hit distance and MIP level; shading time per frame (median of
-    repeats) and compile time (first run − median)."""
+    there is no glossy ray), light-field hit distance and MIP level, whether its glossy ray's origin is
+    seen by one of the K nearest usable probes (``probes.origins_seen``; False without a ray); shading
+    time per frame (median of repeats) and compile time (first run − median)."""
 
     irradiance: np.ndarray
     glossy: np.ndarray
     status: np.ndarray
     t: np.ndarray
     lod: np.ndarray
+    origin_seen: np.ndarray
     seconds_per_frame: float
     compile_seconds: float
 
@@ -272,7 +275,8 @@ def shade_probes(
     the light-field tracer, read with ``config.glossy_filter``. Timed: the first run (compile) apart, then
     the median of ``timing_repeats`` runs. The SH coefficients and the glossy read's maps are built once
     before (like the baked maps); ``maps``: :func:`probes.glossy_maps` of ``lf`` (reflected radiance,
-    ``config.glossy_filter``) if already built."""
+    ``config.glossy_filter``) if already built. Untimed, with the same tracer: whether each glossy ray's
+    origin is seen by one of the K nearest usable probes (``probes.origins_seen``)."""
     tracer = make_tracer(lf, scene.bounds, config=config.trace)
     sh_c = sh_coefficients(lf) if config.shading == "sh" else None
     maps = glossy_maps(lf, config.glossy_filter, include_emission=False) if maps is None else maps
@@ -307,15 +311,16 @@ def shade_probes(
     per_frame = statistics.median(times)
     n = prim.n_samples
     glossy, status = np.zeros((n, 3)), np.full(n, NO_RAY, np.int32)
-    t, lod = np.full(n, np.inf), np.zeros(n)
+    t, lod, seen = np.full(n, np.inf), np.zeros(n), np.zeros(n, bool)
     if g:
         gi = prim.glossy_idx
         glossy[gi] = np.asarray(res.radiance, np.float64)
         status[gi] = np.asarray(res.status)
         t[gi] = np.asarray(res.t, np.float64)
         lod[gi] = np.asarray(res.lod, np.float64)
+        seen[gi] = np.asarray(origins_seen(tracer, prim.origins))
     E = np.where(prim.valid[:, None], np.asarray(E, np.float64), 0.0)
-    return ProbeShading(E, glossy, status, t, lod, per_frame, max(first - per_frame, 0.0))
+    return ProbeShading(E, glossy, status, t, lod, seen, per_frame, max(first - per_frame, 0.0))
 
 
 def perfect_trace(

@@ -528,7 +528,7 @@ def _bake_stage(cfg: ExperimentConfig, scene, probes, key, partial: Path, timing
     metrics["inside_bake"] = int((np.asarray(lf.inside) & np.asarray(lf.active)).sum())
     # the settings stored with the probes (backend included), plus the geometry maps' resolution
     # (interior: the stored maps carry a one-texel border)
-    metrics["bake_settings"] = {**lf.bake.to_dict(), "geometry_res": int(lf.distance.shape[-1]) - 2}
+    metrics["bake_settings"] = {**lf.bake.to_dict(), "geometry_res": lf.geometry_res}
     # as stored, for the real probes only (padding rows are not part of the method's cost)
     per_probe = _tree_nbytes(lf) / int(lf.pos_world.shape[0])
     metrics["memory"] = {"bytes_per_probe": per_probe, "bytes_total": per_probe * metrics["n_probes"]}

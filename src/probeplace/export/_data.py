@@ -23,7 +23,8 @@ from .._core._errors import ProbeplaceError
 from ._sh import project_radiance
 
 PROBE_SET_FORMAT = "probeplace.ProbeSet/1"  # same tag as _core._probe_io (which imports JAX)
-LIGHT_FIELD_FORMAT = "probeplace.LightFieldProbes/1"  # same tag as probes._io
+#: the tags of probes._io (version 2 packs the geometry maps, which export does not read)
+LIGHT_FIELD_FORMATS = ("probeplace.LightFieldProbes/2", "probeplace.LightFieldProbes/1")
 
 
 class ExportError(ProbeplaceError, ValueError):
@@ -199,8 +200,8 @@ def read_light_field_npz(path: str | os.PathLike, *, sh_source: str = "total") -
             data = {k: z[k] for k in z.files}
     except (zipfile.BadZipFile, ValueError, OSError) as e:
         raise ExportError(f"{path}: not a readable .npz probe file ({e})") from None
-    if str(data.get("format", "")) != LIGHT_FIELD_FORMAT:
-        raise ExportError(f"{path}: not a probeplace light-field probe file ({LIGHT_FIELD_FORMAT})")
+    if str(data.get("format", "")) not in LIGHT_FIELD_FORMATS:
+        raise ExportError(f"{path}: not a probeplace light-field probe file ({LIGHT_FIELD_FORMATS[0]})")
     needed = ("pos_world", "active", "radiance", "emission", "irradiance", "moments", "far")
     missing = [k for k in needed if k not in data]
     if missing:

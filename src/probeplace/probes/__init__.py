@@ -18,7 +18,6 @@ from ._bake_samples import BakeSamples as BakeSamples
 from ._bake_samples import choose_bake_spp as choose_bake_spp
 from ._filter import distance_moments as distance_moments
 from ._filter import irradiance_map as irradiance_map
-from ._filter import mip_chains as mip_chains
 
 # --- tracing and shading ---
 from ._index import GridIndex as GridIndex
@@ -29,6 +28,7 @@ from ._inside import probes_inside as probes_inside
 from ._io import load_probes as load_probes
 from ._io import save_probes as save_probes
 from ._plot import save_contact_sheet as save_contact_sheet
+from ._seen import origins_seen as origins_seen
 from ._trace import LightFieldTracer as LightFieldTracer
 from ._trace import TraceConfig as TraceConfig
 from ._trace import TraceResult as TraceResult

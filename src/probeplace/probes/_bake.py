@@ -68,12 +68,13 @@ from .._core import (
     check_target,
     jittered_texel_directions,
     next_pow2,
+    pack_normal,
     scene_box,
     texel_directions,
 )
 from .._core._errors import check_memory
 from .._core._progress import progress_bar
-from ._filter import distance_moments, irradiance_map, mip_chains
+from ._filter import distance_moments, irradiance_map
 from ._inside import probes_inside
 
 log = logging.getLogger(__name__)
@@ -313,16 +314,15 @@ def batch_ray_bytes(n_probes: int, res: int, n_sub: int) -> int:
 
 def probe_bytes(scene: Scene, config: BakeConfig) -> int:
     """Bytes one baked probe holds at ``config`` (its maps as :class:`LightFieldProbes` stores them: float32
-    radiance, emission, normal, distance, irradiance and moments with their one-texel borders, the distance
-    min/max MIP chains, the back-face bytes, position and flags): what a memory budget divides by
-    (``placement._budget.count_for_memory``)."""
+    radiance, emission, irradiance, moments and distance, the two int16 normal components
+    (``_core._packed``) and the back-face bytes, all with their one-texel borders; position and flags):
+    what a memory budget divides by (``placement._budget.count_for_memory``)."""
     res = config.radiance_res or default_radiance_res(scene, quality=config.quality)
     geo = config.geometry_res or res
     floats = 2 * (res + 2) ** 2 * 3  # radiance, emission
-    floats += (geo + 2) ** 2 * (3 + 1)  # normal, distance
     floats += (config.irradiance_res + 2) ** 2 * 3 + (config.moments_res + 2) ** 2 * 2
-    floats += 2 * sum((geo >> k) ** 2 for k in range(1, geo.bit_length()))  # MIPs R/2 … 1, min and max
-    return 4 * (floats + 3) + (geo + 2) ** 2 + 2  # + position; + back-face and active/inside bytes
+    geometry = (geo + 2) ** 2 * (4 + 2 * 2 + 1)  # float32 distance, two int16 normal components, back face
+    return 4 * (floats + 3) + geometry + 2  # + position; + active/inside bytes
 
 
 def default_radiance_res(scene: Scene, *, quality: float = 1.0) -> int:
@@ -435,10 +435,11 @@ def _bake_batch(
     )
     origins = np.repeat(np.asarray(pos, np.float32), geo_res * geo_res, axis=0)
     hit = caster.closest_hit(jnp.asarray(origins), jnp.asarray(centre_dirs))
-    dist, nrm, back = (np.asarray(a) for a in _texel_surfels(hit, centre_dirs, far))
-    distance = dist.reshape(b, geo_res, geo_res)
-    normal = nrm.reshape(b, geo_res, geo_res, 3)
-    backface = back.reshape(b, geo_res, geo_res)
+    dist, nrm, back = _texel_surfels(hit, centre_dirs, far)
+    # normals packed batch by batch (a 1024-probe set at 512² would be 3 GiB of float32 normals)
+    distance = np.asarray(dist).reshape(b, geo_res, geo_res)
+    normal = np.asarray(pack_normal(nrm)).reshape(b, geo_res, geo_res, 2)
+    backface = np.asarray(back).reshape(b, geo_res, geo_res)
 
     k_dir, k_rad = jax.random.split(key)
     radiance, emission, every_lobe = texel_radiance(pos, radiance_fn, res, n_sub, k_dir, k_rad)
@@ -538,12 +539,12 @@ def bake_probes(
     n = pos.shape[0]
     bsz = config.probes_per_batch
     # Refuse up front (issue 9): one batch's rays (~200 bytes per path, see BakeConfig) plus the output
-    # maps (radiance, emission, normal 3 floats, distance 1, kept as NumPy and as JAX copies).
-    # Geometry maps: distance 1 + normal 3 floats + back-face 1 byte, and the distance MIPs (≤ 2 × 4/3).
+    # maps (radiance, emission 3 floats each, kept as NumPy and as JAX copies). Geometry maps per texel:
+    # the float32 distance, the packed normal (2 × int16) and the back-face byte — 9 bytes, twice.
     need = (
         batch_ray_bytes(min(bsz, n), res, config.n_sub)
         + n * (res + 2) ** 2 * 6 * 4 * 2
-        + n * (geo_res + 2) ** 2 * (4 * 4 + 1 + 4 * 3) * 2
+        + n * (geo_res + 2) ** 2 * (4 + 4 + 1) * 2
     )
     check_memory(
         need,
@@ -585,19 +586,16 @@ def bake_probes(
     # surfaces' specular reflection too (a furnace's walls: −3 % of its diffuse indirect without it).
     irr = irradiance_map(f32(every_lobe), config.irradiance_res)
     mom = distance_moments(f32(distance), config.moments_res, config.moment_power)
-    mins, maxs = mip_chains(f32(distance))
     return LightFieldProbes(
         pos_world=f32(pos),
         active=jnp.asarray(probes.active),
         inside=jnp.asarray(inside),
         radiance=add_border(f32(radiance)),
         emission=add_border(f32(emission)),
-        normal=add_border(f32(normal)),
+        normal16=add_border(jnp.asarray(normal)),
         distance=add_border(f32(distance)[..., None])[..., 0],
         irradiance=add_border(irr),
         moments=add_border(mom),
-        distance_min_mips=mins,
-        distance_max_mips=maxs,
         far=jnp.float32(far),
         backface=add_border(f32(backface)[..., None])[..., 0] > 0.5,
         bake=_settings(scene, radiance_fn, res, config.n_sub, key),

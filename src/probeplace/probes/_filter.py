@@ -56,19 +56,3 @@ def distance_moments(distance: Float[Array, "p r r"], res: int, power: float) ->
     m1 = d @ w.T
     m2 = (d * d) @ w.T
     return jnp.stack([m1, m2], axis=-1).reshape(p, res, res, 2)
-
-
-@jax.jit
-def mip_chains(
-    distance: Float[Array, "p r r"],
-) -> tuple[tuple[Float[Array, "p _ _"], ...], tuple[Float[Array, "p _ _"], ...]]:
-    """Min and max MIP chains of interior distance maps: levels R/2, R/4, …, 1 (R a power of two)."""
-    mins, maxs = [], []
-    lo = hi = distance
-    while lo.shape[1] > 1:
-        p, r = lo.shape[0], lo.shape[1]
-        lo = lo.reshape(p, r // 2, 2, r // 2, 2).min(axis=(2, 4))
-        hi = hi.reshape(p, r // 2, 2, r // 2, 2).max(axis=(2, 4))
-        mins.append(lo)
-        maxs.append(hi)
-    return tuple(mins), tuple(maxs)

@@ -49,7 +49,6 @@ continuous across the fold at every level.
 from __future__ import annotations
 
 import math
-from functools import partial
 
 import equinox as eqx
 import jax
@@ -148,18 +147,19 @@ def _nearest(maps: Array, p: Int[Array, ""], direction: Float[Array, "3"]) -> Ar
     return maps[p, rc[0] + 1, rc[1] + 1]
 
 
-@partial(jax.jit, static_argnames=("res",))  # one program, not one per operation (issue 32)
-def _surfel_maps(distance: Array, normal: Array, res: int) -> tuple[Array, Array]:
+@eqx.filter_jit  # one program, not one per operation (issue 32); ``res`` is static
+def _surfel_maps(lf: LightFieldProbes, res: int) -> tuple[Array, Array]:
     """Bordered (p, res+2, res+2, 3) maps of each radiance texel's surfel: the point d·ω_c relative to the
-    probe and the normal, from the geometry texel (bordered ``distance`` and ``normal`` maps of a bake)
-    containing the radiance texel's centre direction (the geometry maps may be finer)."""
-    gres = distance.shape[-1] - 2
-    dirs = texel_directions(res, distance.dtype).reshape(-1, 3)
+    probe and the normal, from the geometry texel (of the bake's bordered distance and normal maps)
+    containing the radiance texel's centre direction (the geometry maps may be finer). Only those texels
+    are unpacked (``LightFieldProbes.normal_at``), not the whole normal maps."""
+    gres = lf.geometry_res
+    dirs = texel_directions(res, lf.far.dtype).reshape(-1, 3)
     rc = jax.vmap(lambda w: texel_of_direction(gres, w))(dirs)
-    omega = texel_directions(gres, distance.dtype)[rc[:, 0], rc[:, 1]]
-    dist = distance[:, rc[:, 0] + 1, rc[:, 1] + 1]
-    point = (dist[..., None] * omega[None]).reshape(-1, res, res, 3)
-    normal = normal[:, rc[:, 0] + 1, rc[:, 1] + 1].reshape(-1, res, res, 3)
+    omega = texel_directions(gres, lf.far.dtype)[rc[:, 0], rc[:, 1]]
+    at = (slice(None), rc[:, 0] + 1, rc[:, 1] + 1)
+    point = (lf.distance[at][..., None] * omega[None]).reshape(-1, res, res, 3)
+    normal = lf.normal_at(*at).reshape(-1, res, res, 3)
     return add_border(point), add_border(normal)
 
 
@@ -251,12 +251,12 @@ def _sees(lf: LightFieldProbes, p, x, n_front, margin):
     r = jnp.linalg.norm(v)
     w = safe_normalize(v)
     same_side = jnp.dot(-v, n_front) > 0
-    dres = lf.distance.shape[-1] - 2
+    dres = lf.geometry_res
     rc = texel_of_direction(dres, w)
     dist_c = lf.distance[p, rc[0] + 1, rc[1] + 1]
     # The texel's surfel (McGuire §4.1): the plane through dist_c·ω_c with the baked normal, met along w.
     omega_c = texel_directions(dres, x.dtype)[rc[0], rc[1]]
-    ns = _nearest(lf.normal, p, w)
+    ns = lf.normal_at(p, rc[0] + 1, rc[1] + 1)
     xs_n = dist_c * jnp.dot(omega_c, ns)
     w_n = jnp.dot(w, ns)
     ok = (jnp.abs(w_n) > 1e-3) & (xs_n * w_n > 0)
@@ -329,7 +329,7 @@ def glossy_maps(
         return radiance_mips(lf, include_emission=include_emission)
     level0 = lf.radiance + lf.emission if include_emission else lf.radiance
     if filter == "depth_aware":
-        return (level0, *_surfel_maps(lf.distance, lf.normal, level0.shape[-2] - 2))
+        return (level0, *_surfel_maps(lf, level0.shape[-2] - 2))
     return (level0,)
 
 

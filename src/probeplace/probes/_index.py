@@ -193,7 +193,7 @@ def voxel_index(
     h = float(ext.max()) / max_voxels_per_axis
     dims = tuple(int(max(1, np.ceil(e / h - 1e-6))) for e in ext)
     pos = np.asarray(lf.pos_world, np.float64)
-    res = lf.distance.shape[-1] - 2  # the geometry maps' resolution (may differ from radiance's)
+    res = lf.geometry_res  # the geometry maps' resolution (may differ from radiance's)
     dist = np.asarray(strip_border(lf.distance[..., None]))[..., 0].astype(np.float64)
     dirs = np.asarray(texel_directions(res), np.float64).reshape(-1, 3)
     boxes = _influence_boxes(dist.reshape(len(pos), -1), dirs, pos)

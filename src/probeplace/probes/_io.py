@@ -1,4 +1,5 @@
-"""Save and load baked probes as one ``.npz`` (lossless: every leaf is stored with its dtype).
+"""Save and load baked probes as one ``.npz`` (lossless: every leaf is stored with its dtype; the
+normal maps are the two int16 components the probes hold, ``_core._packed``).
 
 Beside the maps, the file holds the ``backface`` map and the bake settings
 (:class:`~probeplace._core.BakeSettings`, as a JSON string under ``bake_settings``). Files written before
@@ -16,16 +17,18 @@ from pathlib import Path
 import jax.numpy as jnp
 import numpy as np
 
-from .._core import BakeSettings, LightFieldProbes, ProbeplaceError, write_atomic
+from .._core import BakeSettings, LightFieldProbes, ProbeplaceError, pack_normal, write_atomic
 
-_FORMAT = "probeplace.LightFieldProbes/1"  # the maps' layout; export._data reads the same tag
+_FORMAT = "probeplace.LightFieldProbes/2"  # the maps' layout; export._data reads the same tag
+#: Version 1 stored float32 normal maps and distance MIP chains; it still loads (normals packed here).
+_FORMAT_V1 = "probeplace.LightFieldProbes/1"
 _MAPS = (
     "pos_world",
     "active",
     "inside",
     "radiance",
     "emission",
-    "normal",
+    "normal16",
     "distance",
     "irradiance",
     "moments",
@@ -36,9 +39,6 @@ def save_probes(path: str | os.PathLike, probes: LightFieldProbes) -> Path:
     """Write ``probes`` to ``path`` (.npz) atomically (a temporary file renamed into place)."""
     path = Path(path)
     arrays = {name: np.asarray(getattr(probes, name)) for name in _MAPS}
-    for i, (lo, hi) in enumerate(zip(probes.distance_min_mips, probes.distance_max_mips, strict=True)):
-        arrays[f"distance_min_mip{i + 1}"] = np.asarray(lo)
-        arrays[f"distance_max_mip{i + 1}"] = np.asarray(hi)
     arrays["far"] = np.asarray(probes.far)
     arrays["format"] = np.asarray(_FORMAT)
     if probes.backface is not None:
@@ -62,8 +62,11 @@ def load_probes(path: str | os.PathLike) -> LightFieldProbes:
             data = {k: z[k] for k in z.files}
     except (zipfile.BadZipFile, ValueError, OSError) as e:
         raise ProbeplaceError(f"{path}: not a readable .npz probe file ({e})") from None
-    if str(data.get("format", "")) != _FORMAT:
+    fmt = str(data.get("format", ""))
+    if fmt not in (_FORMAT, _FORMAT_V1):
         raise ProbeplaceError(f"{path}: not a probeplace light-field probe file (format {_FORMAT} expected)")
+    if fmt == _FORMAT_V1 and "normal" in data:
+        data["normal16"] = np.asarray(pack_normal(data.pop("normal")))
     missing = [k for k in (*_MAPS, "far") if k not in data]
     if missing:
         raise ProbeplaceError(f"{path}: probe file lacks {missing}")
@@ -73,11 +76,8 @@ def load_probes(path: str | os.PathLike) -> LightFieldProbes:
             bake = BakeSettings.from_dict(json.loads(str(data["bake_settings"])))
         except (json.JSONDecodeError, KeyError, TypeError, ValueError) as e:
             raise ProbeplaceError(f"{path}: unreadable bake settings ({type(e).__name__}: {e})") from None
-    n_mips = sum(1 for k in data if k.startswith("distance_min_mip"))
     return LightFieldProbes(
         **{k: jnp.asarray(data[k]) for k in _MAPS},
-        distance_min_mips=tuple(jnp.asarray(data[f"distance_min_mip{i + 1}"]) for i in range(n_mips)),
-        distance_max_mips=tuple(jnp.asarray(data[f"distance_max_mip{i + 1}"]) for i in range(n_mips)),
         far=jnp.asarray(data["far"]),
         backface=jnp.asarray(data["backface"]) if "backface" in data else None,
         bake=bake,

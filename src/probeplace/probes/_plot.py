@@ -30,7 +30,7 @@ def save_contact_sheet(probes: LightFieldProbes, path: str | os.PathLike, *, max
 
     n = min(int(probes.pos_world.shape[0]), max_probes)
     inner = lambda a: np.asarray(a)[:n, 1:-1, 1:-1]
-    rad, emi, nrm = inner(probes.radiance), inner(probes.emission), inner(probes.normal)
+    rad, emi, nrm = inner(probes.radiance), inner(probes.emission), inner(probes.normal_at(slice(n)))
     dist, irr, mom = inner(probes.distance), inner(probes.irradiance), inner(probes.moments)
     sigma = np.sqrt(np.maximum(mom[..., 1] - mom[..., 0] ** 2, 0.0))
     scale_l = float(np.percentile(np.concatenate([rad.ravel(), emi.ravel()]), 99)) or 1.0

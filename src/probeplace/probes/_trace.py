@@ -435,14 +435,14 @@ def _all_probe_maps(lf: LightFieldProbes, keep, config: TraceConfig) -> tuple[tu
     program per probe count), with a progress bar when there is much to do; and the bordered texel
     directions."""
     kw = dict(sub=config.subdivide, tol=config.edge_tol, thickness=config.thickness)
-    res = lf.distance.shape[-1] - 2
+    res = lf.geometry_res
     big_job = len(keep) * (res * config.subdivide) ** 2 >= 2**22  # ~ a few seconds and more
     bar = progress_bar(total=len(keep), desc=f"tracer maps {res}²", unit="probe", disable=not big_job)
-    distance, normal = np.asarray(lf.distance), np.asarray(lf.normal)  # host rows: no program per row
     cones = cell_cones(res * config.subdivide), cell_cones(res)
     out = directions = None
     for i, p in enumerate(keep):
-        *arrays, directions = _probe_maps(distance[p], normal[p], lf.far, *cones, **kw)
+        # one probe's normals unpacked at a time (a 1024-probe set at 512² would be 3 GiB as float32)
+        *arrays, directions = _probe_maps(lf.distance[p], lf.normal_at(p), lf.far, *cones, **kw)
         if out is None:
             out = _first_rows(tuple(arrays), len(keep))
         else:
@@ -484,11 +484,9 @@ def make_tracer(
         ConfigError: bad settings, non-finite probe positions or bounds, or no usable probe. Duplicate
             probes and probes outside ``bounds`` are accepted with a logged warning.
     """
-    res = lf.distance.shape[-1] - 2  # the geometry maps' resolution, whatever the radiance's
+    res = lf.geometry_res  # the geometry maps' resolution, whatever the radiance's
     if res < 2 or res & (res - 1):
         raise ConfigError(f"the tracer needs power-of-two distance maps, got resolution {res}")
-    if lf.normal.shape[-2] - 2 != res:
-        raise ConfigError(f"the normal map ({lf.normal.shape[-2] - 2}²) must match the distance map ({res}²)")
     bn = np.asarray(bounds, np.float32)  # checked on the host: no compiled program for a check
     pos = np.asarray(lf.pos_world, np.float32)
     if not np.isfinite(pos).all():
