@@ -66,6 +66,7 @@ from .._core import (
     SceneError,
     add_border,
     check_target,
+    dot3,
     jittered_texel_directions,
     next_pow2,
     pack_normal,
@@ -249,6 +250,12 @@ class BakeConfig:
             winding) or ``"none"`` (no probe is inside).
         inside_neighbours: probes each probe tests for a line of sight in the ``"reach"`` test (its
             nearest ones; all pairs when there are fewer).
+        inside_res: the ``"reach"`` test's rays: the texel centres of an ``inside_res``² map (every k-th
+            geometry texel per axis when the geometry maps are finer). A probe inside a solid that leaks
+            counts as free once one of its rays finds the crack (:func:`probes_inside`), so the verdict
+            must not depend on the map resolution: on Crytek Sponza's 16×8×8 grid, the reach test on all
+            of 512² geometry texels found cracks for 776 probes in walls and roof (16 inside, against 792 with
+            128² rays; issue 33).
         inside_backface_share: the ``"backface"`` threshold; also the ``"reach"`` test's fallback when no
             probe escapes the scene or sees a view camera (a closed scene without views: then nothing
             but the winding tells a room from a solid).
@@ -270,6 +277,7 @@ class BakeConfig:
     moment_power: float = 50.0
     inside_test: str = "reach"
     inside_neighbours: int = 16
+    inside_res: int = 128
     inside_backface_share: float = 0.5
     probes_per_batch: int = 8
     quality: float = 1.0
@@ -285,7 +293,9 @@ class BakeConfig:
                 isinstance(v, int) and not isinstance(v, bool) and _is_pow2(v) and v >= 2
             ):
                 raise ConfigError(f"BakeConfig.{name} must be a power of two ≥ 2, got {v!r}")
-        for name in ("irradiance_res", "moments_res", "n_sub", "probes_per_batch", "inside_neighbours"):
+        counts = ("irradiance_res", "moments_res", "n_sub", "probes_per_batch", "inside_neighbours")
+        counts += ("inside_res",)
+        for name in counts:
             v = getattr(self, name)
             if not isinstance(v, int) or isinstance(v, bool) or v < 1:
                 raise ConfigError(f"BakeConfig.{name} must be a positive int, got {v!r}")
@@ -406,16 +416,18 @@ def _warn_probe_layout(pos: np.ndarray, lo: np.ndarray, hi: np.ndarray, what: st
 
 
 @jax.jit  # one program over the batch's rays (issue 33: 512² maps are 2 M rays a batch)
+@jax.jit  # one program a batch shape (issue 33: eager, these ops cost ~1 s of a 512² bake of 128 probes)
 def _texel_surfels(hit, d, far):
-    """(distance, normal, back face) of each texel-centre ray's hit: ``far`` and zeros on a miss. The side
-    the probe sees is the renderer's rule (the geometric normal decides), then the shading normal on that
-    side; where interpolation bends it past the ray (grazing texels), the geometric one."""
+    """(distance, packed normal, back face) of each texel-centre ray's hit: ``far`` and a zero normal on a
+    miss. The side the probe sees is the renderer's rule (the geometric normal decides), then the shading
+    normal on that side; where interpolation bends it past the ray (grazing texels), the geometric one.
+    Normals are packed here (``_core.pack_normal``), so no float32 normal map is kept."""
     is_hit = hit.tri >= 0
-    back = is_hit & (jnp.sum(hit.geo_normal * d, axis=-1) > 0)
+    back = is_hit & (dot3(hit.geo_normal, d) > 0)
     side = jnp.where(back, -1.0, 1.0).astype(d.dtype)[:, None]
     n_or = hit.shading_normal * side
-    n_or = jnp.where((jnp.sum(n_or * d, axis=-1) < 0)[:, None], n_or, hit.geo_normal * side)
-    return jnp.where(is_hit, hit.t, far), jnp.where(is_hit[:, None], n_or, 0.0), back
+    n_or = jnp.where((dot3(n_or, d) < 0)[:, None], n_or, hit.geo_normal * side)
+    return jnp.where(is_hit, hit.t, far), pack_normal(jnp.where(is_hit[:, None], n_or, 0.0)), back
 
 
 def _bake_batch(
@@ -435,10 +447,10 @@ def _bake_batch(
     )
     origins = np.repeat(np.asarray(pos, np.float32), geo_res * geo_res, axis=0)
     hit = caster.closest_hit(jnp.asarray(origins), jnp.asarray(centre_dirs))
-    dist, nrm, back = _texel_surfels(hit, centre_dirs, far)
     # normals packed batch by batch (a 1024-probe set at 512² would be 3 GiB of float32 normals)
+    dist, nrm, back = _texel_surfels(hit, jnp.asarray(centre_dirs), jnp.float32(far))
     distance = np.asarray(dist).reshape(b, geo_res, geo_res)
-    normal = np.asarray(pack_normal(nrm)).reshape(b, geo_res, geo_res, 2)
+    normal = np.asarray(nrm).reshape(b, geo_res, geo_res, 2)
     backface = np.asarray(back).reshape(b, geo_res, geo_res)
 
     k_dir, k_rad = jax.random.split(key)
@@ -573,9 +585,7 @@ def bake_probes(
     radiance, emission, every_lobe, normal, distance, backface = (
         np.concatenate(x) for x in zip(*parts, strict=True)
     )
-    inside = _inside(
-        scene, pos, geo_res, np.where(distance < far, distance, np.inf), backface, caster, config
-    )
+    inside = _inside(scene, pos, geo_res, distance, far, backface, caster, config)
     if inside.any():
         log.warning(
             "%d of %d probes are inside geometry (inside_test=%s)", inside.sum(), n, config.inside_test
@@ -602,14 +612,19 @@ def bake_probes(
     )
 
 
-def _inside(scene, pos, res: int, hit_t, backface, caster, config: BakeConfig) -> np.ndarray:
-    """The ``inside`` flags by ``config.inside_test`` (see :class:`BakeConfig`); ``hit_t`` is the
-    (n, res, res) texel-centre hit distance, ``inf`` where the ray escapes."""
+def _inside(scene, pos, res: int, distance, far: float, backface, caster, config: BakeConfig) -> np.ndarray:
+    """The ``inside`` flags by ``config.inside_test`` (see :class:`BakeConfig`); ``distance`` is the
+    (n, res, res) texel-centre hit distance, ``far`` where the ray escapes."""
     if config.inside_test == "none":
         return np.zeros(len(pos), bool)
     if config.inside_test == "reach":
         cams = np.asarray([np.asarray(c.position, np.float64) for c in scene.views]).reshape(-1, 3)
-        dirs = np.asarray(texel_directions(res), np.float64).reshape(-1, 3)
+        # as many rays as an inside_res² map (every k-th texel per axis): the chance to find a crack must
+        # not grow with the geometry maps' resolution (BakeConfig.inside_res)
+        k = max(1, res // config.inside_res)
+        dirs = np.asarray(texel_directions(res), np.float64)[::k, ::k].reshape(-1, 3)
+        hit_t = distance.reshape(len(pos), res, res)[:, ::k, ::k]
+        hit_t = np.where(hit_t < far, hit_t, np.inf)
         inside = probes_inside(
             pos, dirs, hit_t.reshape(len(pos), -1), cams, caster, neighbours=config.inside_neighbours
         )
