@@ -467,3 +467,29 @@ def test_tracer_bytes_counts_the_maps_it_builds(room):
         mp.setenv("PROBEPLACE_MAX_BYTES", "50KB")  # the 32² tracer: 2 × 39 kB
         with pytest.raises(ResourceError, match="light-field tracer of 1 usable probes at geometry_res=32"):
             make_tracer(lf, scene.bounds)
+
+
+def test_edge_on_rule_only_withdraws_hits(room):
+    """``TraceConfig.edge_on_deg``: a crossing of a surfel plane far from the surfel's own distance is
+    unknown (another probe decides). It may only turn a single probe's hit into unknown, never make a hit
+    or a miss or move a hit; at 60° (a tolerance of 13 % of the distance at 32²) it withdraws the grazing
+    hits near the room's corners, and with the default (84.5°: 81 % at 32²) none of this room's."""
+    scene, lf = room
+    rng = np.random.default_rng(11)
+    o = jnp.asarray(rng.uniform([0.3, 0.3, 0.3], ROOM_HI - 0.3, (400, 3)), jnp.float32)
+    d = jnp.asarray(_unit(rng.normal(size=(400, 3))), jnp.float32)
+
+    def run(deg):
+        tr = make_tracer(lf, scene.bounds, config=TraceConfig(edge_on_deg=deg))
+        f = jax.vmap(lambda o, d: trace_probe(tr, jnp.int32(0), o, d, jnp.float32(0), jnp.float32(20.0)))
+        st, t, _, _ = f(o, d)
+        return np.asarray(st), np.asarray(t)
+
+    st0, t0 = run(None)
+    for deg, some in ((60.0, True), (84.5, False)):
+        st, t = run(deg)
+        changed = st != st0
+        assert np.all(st0[changed] == HIT) and np.all(st[changed] == 2)  # HIT → UNKNOWN only
+        both = (st == HIT) & (st0 == HIT)
+        np.testing.assert_array_equal(t[both], t0[both])
+        assert changed.any() == some

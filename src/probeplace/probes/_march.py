@@ -11,6 +11,7 @@ import jax
 import jax.numpy as jnp
 from jaxtyping import Array, Float, Int
 
+from .._core import norm3
 from ._surfels import NEIGHBOURS, crease
 
 #: Status codes of a single-probe trace.
@@ -126,6 +127,12 @@ def _partners(tr, xs, n, has):
     return own | (concave & has & has[0])
 
 
+def _edge_on_tol(tr) -> float:
+    """The relative radial distance a plane seen at ``edge_on_deg`` from its normal spans between its
+    texel's centre and the farthest point of a march cell (0.7 texel widths of √(4π)/res radians)."""
+    return math.tan(math.radians(tr.config.edge_on_deg)) * 0.7 * math.sqrt(4 * math.pi) / tr.res
+
+
 def _surfel_test(tr, p, pc: _Piece, ij, t, t_exit):
     """The fine test of march cell ``ij`` over [t, t_exit] (module docstring): (status, t of the hit,
     geometry texel). Candidate 0 is the cell's own surfel; in an ambiguous cell every one counts."""
@@ -155,6 +162,11 @@ def _surfel_test(tr, p, pc: _Piece, ij, t, t_exit):
     all_hit = jnp.all(hit | starts_here) & jnp.any(~starts_here)
     all_hit = all_hit & (t_last - t_first <= tr.config.thickness * jnp.linalg.norm(o + t_first * d))
     t_amb = jnp.where(hit[0], t_hit[0], t_first)
+    if tr.config.edge_on_deg is not None:  # as for one surface below, against the cell's own surfel
+        r_own = norm3(xs[0])
+        far_off = jnp.abs(norm3(o + t_amb * d) - r_own) > _edge_on_tol(tr) * r_own
+        blocks = blocks | (all_hit & far_off)
+        all_hit = all_hit & ~far_off
     several = jnp.where(all_hit, HIT, jnp.where(jnp.any(blocks), UNKNOWN, MISS))
     # One surface: its own surfel decides a hit; a concave-crease partner's plane (``_partners``) crossed
     # first, or the ray starting deep behind either, is unknown from the cell's entry — the crease may be
@@ -164,6 +176,13 @@ def _surfel_test(tr, p, pc: _Piece, ij, t, t_exit):
     t_partner = jnp.min(jnp.where(hit & partner & (jnp.arange(hit.shape[0]) > 0), t_hit, jnp.inf))
     own_first = hit[0] & (t_hit[0] <= t_partner * (1 + 1e-3))
     blocked = jnp.isfinite(t_partner) | jnp.any(partner & has & (g0 < -tau))
+    if tr.config.edge_on_deg is not None:
+        # The own plane crossed far from the surfel's distance: seen nearly edge-on, where one plane per
+        # texel does not fit the geometry (TraceConfig.edge_on_deg). Unknown from the cell's entry.
+        r_c = norm3(xs[0])
+        edge_on = jnp.abs(norm3(o + t_hit[0] * d) - r_c) > _edge_on_tol(tr) * r_c
+        blocked = blocked | (own_first & edge_on)
+        own_first = own_first & ~edge_on
     one = jnp.where(own_first, HIT, jnp.where(blocked, UNKNOWN, MISS))
     status = jnp.where(ambiguous, several, one).astype(jnp.int32)
     texel = jnp.stack([rows[0], cols[0]]) - 1

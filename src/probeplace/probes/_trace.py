@@ -99,6 +99,15 @@ class TraceConfig:
             half-texel next to a silhouette is ambiguous) or 1.
         edge_tol: relative tolerance of the one-surface test between neighbouring surfels (``_surfels``);
             ``None`` turns the test off (every cell is its texel's surfel, McGuire's model).
+        edge_on_deg: a crossing of a cell's own surfel plane (or, in an ambiguous cell, of every candidate's)
+            is unknown, not a hit — another probe decides — where its radial distance differs from the
+            surfel's by more than a plane seen at this angle from its normal could make it within the cell:
+            tan θ × 0.7 texel widths (the farthest a march cell's point lies from its texel's centre), i.e.
+            5 % at 512² and θ = 84.5°. There the texel's one plane stands for geometry it does not fit. On
+            Sponza's 8×4×4 grid at 512² (seed 2), it turned 95 of the 154 resolved hits short of the exact
+            one by more than 2 % — most of them in the probe's own free space (its exact ray in that
+            direction met the surface farther) — into rays other probes resolved: agreement 0.891 → 0.924.
+            ``None``: off.
         max_probes: distinct probes a ray may try in all (McGuire: the 8 of a cage).
         fallback_probes: of those, how many may come from the search for probes that see the last free
             point, after the index's candidates (0: none). The index gets the rest (at least one).
@@ -124,6 +133,7 @@ class TraceConfig:
     thickness: float = 0.03
     subdivide: int = 2
     edge_tol: float | None = 0.05
+    edge_on_deg: float | None = 84.5
     max_probes: int = 16
     fallback_probes: int = 8
     fallback_margin: float = 0.0
@@ -154,9 +164,10 @@ class TraceConfig:
             "fallback_margin",
             "fallback_radius",
             "edge_tol",
+            "edge_on_deg",
         ):
             v = getattr(self, name)
-            if v is None and name == "edge_tol":
+            if v is None and name in ("edge_tol", "edge_on_deg"):
                 continue
             if not isinstance(v, int | float) or isinstance(v, bool) or not math.isfinite(v):
                 raise ConfigError(f"TraceConfig.{name} must be a finite number, got {v!r}")
@@ -181,6 +192,8 @@ class TraceConfig:
             raise ConfigError(f"TraceConfig.subdivide must be 1 or 2, got {self.subdivide}")
         if self.edge_tol is not None and not self.edge_tol > 0:
             raise ConfigError(f"TraceConfig.edge_tol must be positive or None, got {self.edge_tol}")
+        if self.edge_on_deg is not None and not 0 < self.edge_on_deg < 90:
+            raise ConfigError(f"TraceConfig.edge_on_deg must be in (0, 90) or None, got {self.edge_on_deg}")
         if self.max_probes < 1:
             raise ConfigError(f"TraceConfig.max_probes must be ≥ 1, got {self.max_probes}")
         if self.fallback_probes < 0:
