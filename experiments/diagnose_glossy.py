@@ -5,7 +5,7 @@ true distance (Embree), and the MSE with the hit / unresolved rays shaded black.
 
     PROBEPLACE_SCENE_PATH=../shared/scenes .venv/bin/python experiments/diagnose_glossy.py \\
         results/sponza_comparison/crytek_sponza__grid__b32__s0 [--width 48 --height 36 --glossy-spp 4] \\
-        [--filter bilinear|texel|mip]
+        [--filter depth_aware|bilinear|texel|mip]
 
 The evaluation is rerun at the given (small) size with the run's view; the MSEs are therefore not the
 run's, but their split is what the run's error is made of.
@@ -27,7 +27,7 @@ def main(argv=None) -> int:
     ap.add_argument("--width", type=int, default=48)
     ap.add_argument("--height", type=int, default=36)
     ap.add_argument("--glossy-spp", type=int, default=4)
-    ap.add_argument("--filter", default="bilinear", choices=["bilinear", "texel", "mip"])
+    ap.add_argument("--filter", default="depth_aware", choices=["depth_aware", "bilinear", "texel", "mip"])
     ap.add_argument("--seed", type=int, default=1)
     args = ap.parse_args(argv)
 
@@ -42,7 +42,7 @@ def main(argv=None) -> int:
         shade_probes,
     )
     from probeplace.experiment import load_experiment_scene
-    from probeplace.probes import load_probes, radiance_mips
+    from probeplace.probes import glossy_maps, load_probes
     from probeplace.render import default_caster
 
     cfg = OmegaConf.load(args.run / "config.yaml")
@@ -63,9 +63,9 @@ def main(argv=None) -> int:
     ref = render_reference(scene, cam, config, seed=args.seed, caster=caster)
     prim = sample_primary(scene, cam, config, seed=args.seed, caster=caster)
     crn = crn_reference(scene, prim, config, seed=args.seed, caster=caster)
-    mips = radiance_mips(lf) if args.filter == "mip" else None
-    shading = shade_probes(scene, lf, prim, config, mips=mips)
-    perfect = perfect_trace(lf, prim, config, caster=caster, mips=mips)
+    maps = glossy_maps(lf, args.filter, include_emission=False)  # as the evaluation builds them
+    shading = shade_probes(scene, lf, prim, config, maps=maps)
+    perfect = perfect_trace(lf, prim, config, caster=caster, maps=maps)
     m = score(scene, lf, cfg.eval.view, config, args.seed, ref, prim, crn, shading, perfect).metrics
 
     st = shading.status
