@@ -90,6 +90,10 @@ def dynamic_float(v):
     return v
 
 
+#: What counts toward coverage (``FitnessConfig.coverage``).
+COVERAGE_RULES = ("reachable", "views")
+
+
 class FitnessConfig(eqx.Module):
     """Parameters of the fitness (see the module docstring).
 
@@ -106,6 +110,10 @@ class FitnessConfig(eqx.Module):
         facing_softness: κ of the logistic facing weight σ(−ω·n/κ).
         two_sided: samples are seen from both sides (static).
         clearance_voxels: a probe position is feasible when its SDF value is at least this many voxels.
+        coverage: which surface counts toward coverage (static): ``"reachable"`` (default: every sample a
+            probe in the views' reachable space can see head-on, :func:`coverable_mask`) or ``"views"``
+            (of those, only the samples some view camera's position sees, :func:`seen_from_views`: the
+            surfaces a player at the views can see, Wang 2019's playable space; issue 34).
     """
 
     w1: float = eqx.field(default=1.0, converter=dynamic_float)
@@ -116,6 +124,7 @@ class FitnessConfig(eqx.Module):
     facing_softness: float = eqx.field(default=0.1, converter=dynamic_float)
     two_sided: bool = eqx.field(static=True, default=False)
     clearance_voxels: float = eqx.field(default=2.0, converter=dynamic_float)
+    coverage: str = eqx.field(static=True, default="reachable")
 
     def __check_init__(self):
         # a stored float64 is checked and shown as the float it was given (``nan``, not ``np.float64(nan)``)
@@ -137,6 +146,10 @@ class FitnessConfig(eqx.Module):
                 raise ConfigError(f"FitnessConfig.{name} must be an integer, got {v!r}")
         if self.map_res < 1 or self.n_steps < 2:
             raise ConfigError("FitnessConfig: map_res ≥ 1 and n_steps ≥ 2 are required")
+        if self.coverage not in COVERAGE_RULES:
+            raise ConfigError(
+                f"FitnessConfig.coverage must be one of {COVERAGE_RULES}, got {self.coverage!r}"
+            )
 
 
 class PlacementProblem(eqx.Module):
@@ -225,6 +238,46 @@ def _normal_march_jit(grid: SDFGrid, lo, hi, clearance, tau, tt, dt, position, n
         return jnp.any(ok), q[best]
 
     return jax.lax.map(lambda xn: one(*xn), (position, normal), batch_size=4096)
+
+
+def seen_from_views(scene: Scene, samples: SurfaceSamples, *, two_sided: bool = False) -> np.ndarray:
+    """Samples that some view camera's *position* sees (any direction: not limited to its frustum): the
+    sample faces the camera (unless ``two_sided``) and the segment from the camera to the sample, lifted
+    off the surface by 1e-4 of the scene diagonal toward the camera's side, is free (exact ray casting).
+    A scene without views sees nothing: refused, since coverage would be empty.
+
+    Raises:
+        ConfigError: the scene has no views.
+    """
+    from ..geometry import make_caster
+
+    cams = view_positions(scene).reshape(-1, 3)
+    if len(cams) == 0:
+        raise ConfigError(
+            f"coverage='views' needs the scene's view cameras, and {scene.name!r} has none: add views or "
+            "use coverage='reachable'"
+        )
+    caster = make_caster(scene)
+    x = np.asarray(samples.position, np.float64)
+    n = np.asarray(samples.normal, np.float64)
+    lo, hi = (np.asarray(b, np.float64) for b in scene.bounds)
+    lift = 1e-4 * float(np.linalg.norm(hi - lo))
+    seen = np.zeros(len(x), bool)
+    for c in cams:
+        to_cam = c[None, :] - x
+        facing = np.sum(n * to_cam, axis=1)
+        side = np.where(facing >= 0, 1.0, -1.0)[:, None]
+        start = x + lift * side * n
+        v = c[None, :] - start
+        dist = np.linalg.norm(v, axis=1)
+        ok = (dist > 0) & (two_sided | (facing > 0)) & ~seen
+        if not ok.any():
+            continue
+        d = v[ok] / dist[ok, None]
+        f32 = lambda a: jnp.asarray(a, jnp.float32)
+        occ = caster.occluded(f32(start[ok]), f32(d), f32(dist[ok]))
+        seen[np.flatnonzero(ok)[~np.asarray(occ)]] = True
+    return seen
 
 
 def coverable_mask(
@@ -330,6 +383,8 @@ def make_problem(
     if config.two_sided:
         back = SurfaceSamples(samples.position, -samples.normal, samples.area, samples.material, samples.tri)
         cov = cov | coverable_mask(grid, back, lo, hi, clearance, diag, reach=reach)
+    if config.coverage == "views":
+        cov = cov & seen_from_views(scene, samples, two_sided=config.two_sided)
     area = np.asarray(samples.area, np.float64)
     w = np.where(cov, area, 0.0)
     w = w / max(w.sum(), 1e-300)
