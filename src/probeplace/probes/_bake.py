@@ -293,9 +293,14 @@ class BakeConfig:
                 isinstance(v, int) and not isinstance(v, bool) and _is_pow2(v) and v >= 2
             ):
                 raise ConfigError(f"BakeConfig.{name} must be a power of two ≥ 2, got {v!r}")
-        counts = ("irradiance_res", "moments_res", "n_sub", "probes_per_batch", "inside_neighbours")
-        counts += ("inside_res",)
-        for name in counts:
+        for name in (
+            "irradiance_res",
+            "moments_res",
+            "n_sub",
+            "probes_per_batch",
+            "inside_neighbours",
+            "inside_res",
+        ):
             v = getattr(self, name)
             if not isinstance(v, int) or isinstance(v, bool) or v < 1:
                 raise ConfigError(f"BakeConfig.{name} must be a positive int, got {v!r}")
@@ -416,7 +421,6 @@ def _warn_probe_layout(pos: np.ndarray, lo: np.ndarray, hi: np.ndarray, what: st
 
 
 @jax.jit  # one program over the batch's rays (issue 33: 512² maps are 2 M rays a batch)
-@jax.jit  # one program a batch shape (issue 33: eager, these ops cost ~1 s of a 512² bake of 128 probes)
 def _texel_surfels(hit, d, far):
     """(distance, packed normal, back face) of each texel-centre ray's hit: ``far`` and a zero normal on a
     miss. The side the probe sees is the renderer's rule (the geometric normal decides), then the shading

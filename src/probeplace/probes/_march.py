@@ -127,10 +127,13 @@ def _partners(tr, xs, n, has):
     return own | (concave & has & has[0])
 
 
-def _edge_on_tol(tr) -> float:
-    """The relative radial distance a plane seen at ``edge_on_deg`` from its normal spans between its
-    texel's centre and the farthest point of a march cell (0.7 texel widths of √(4π)/res radians)."""
-    return math.tan(math.radians(tr.config.edge_on_deg)) * 0.7 * math.sqrt(4 * math.pi) / tr.res
+def _edge_on(tr, xs0, o, d, t):
+    """Whether the crossing at ``t`` lies farther (radially) from the cell's own surfel ``xs0`` than a
+    plane seen at ``edge_on_deg`` from its normal spans between its texel's centre and the farthest point
+    of a march cell (0.7 texel widths of √(4π)/res radians): ``TraceConfig.edge_on_deg``."""
+    tol = math.tan(math.radians(tr.config.edge_on_deg)) * 0.7 * math.sqrt(4 * math.pi) / tr.res
+    r_own = norm3(xs0)
+    return jnp.abs(norm3(o + t * d) - r_own) > tol * r_own
 
 
 def _surfel_test(tr, p, pc: _Piece, ij, t, t_exit):
@@ -163,8 +166,7 @@ def _surfel_test(tr, p, pc: _Piece, ij, t, t_exit):
     all_hit = all_hit & (t_last - t_first <= tr.config.thickness * jnp.linalg.norm(o + t_first * d))
     t_amb = jnp.where(hit[0], t_hit[0], t_first)
     if tr.config.edge_on_deg is not None:  # as for one surface below, against the cell's own surfel
-        r_own = norm3(xs[0])
-        far_off = jnp.abs(norm3(o + t_amb * d) - r_own) > _edge_on_tol(tr) * r_own
+        far_off = _edge_on(tr, xs[0], o, d, t_amb)
         blocks = blocks | (all_hit & far_off)
         all_hit = all_hit & ~far_off
     several = jnp.where(all_hit, HIT, jnp.where(jnp.any(blocks), UNKNOWN, MISS))
@@ -179,8 +181,7 @@ def _surfel_test(tr, p, pc: _Piece, ij, t, t_exit):
     if tr.config.edge_on_deg is not None:
         # The own plane crossed far from the surfel's distance: seen nearly edge-on, where one plane per
         # texel does not fit the geometry (TraceConfig.edge_on_deg). Unknown from the cell's entry.
-        r_c = norm3(xs[0])
-        edge_on = jnp.abs(norm3(o + t_hit[0] * d) - r_c) > _edge_on_tol(tr) * r_c
+        edge_on = _edge_on(tr, xs[0], o, d, t_hit[0])
         blocked = blocked | (own_first & edge_on)
         own_first = own_first & ~edge_on
     one = jnp.where(own_first, HIT, jnp.where(blocked, UNKNOWN, MISS))
