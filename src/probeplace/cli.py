@@ -177,7 +177,7 @@ def _cmd_place(args: argparse.Namespace) -> int:
     from ._core import save_probe_set
     from ._core._checks import check_writable_file
     from ._core._io import naming_the_file
-    from .placement import place, save_top_view
+    from .placement import FitnessConfig, place, save_top_view
     from .scene import load_scene, scene_overrides_from_args
 
     out, png, budget, region = _checked_place_args(args)
@@ -198,6 +198,7 @@ def _cmd_place(args: argparse.Namespace) -> int:
         options=_place_options(args.option),
         clearance=args.clearance,
         region=region,
+        config=FitnessConfig(coverage=args.coverage),
     )
     summary = f"{res.n_probes} probes, coverage {res.coverage:.4f}"
     try:
@@ -464,7 +465,7 @@ _EXPORT_HELP = "write a probe set to an engine format (docs/export.md)"
 
 def _fill_place_parser(pl: argparse.ArgumentParser) -> None:
     """``probeplace place``: methods and refiners from their registries (imports the placement stage)."""
-    from .placement import OBJECTIVES, REFINERS, get_method, method_names
+    from .placement import COVERAGE_RULES, OBJECTIVES, REFINERS, get_method, method_names
     from .scene import add_scene_options
 
     pl.add_argument("scene", help="scene name or file (see `probeplace scenes`)")
@@ -524,6 +525,14 @@ def _fill_place_parser(pl: argparse.ArgumentParser) -> None:
     )
     pl.add_argument("--objective", default="coverage", choices=OBJECTIVES, help="the refiner's objective")
     pl.add_argument("--target", type=float, default=1.0, help="coverage target of --budget auto, in (0, 1]")
+    pl.add_argument(
+        "--coverage",
+        default="reachable",
+        choices=COVERAGE_RULES,
+        help="surface that counts toward coverage: every surface a probe in the views' reachable space "
+        "sees head-on (reachable), or only what the view cameras' positions see (views: Wang 2019's "
+        "playable space)",
+    )
     pl.add_argument("--seed", type=int, default=0, help="random seed")
     pl.add_argument("--out", default="probes.json", help="ProbeSet JSON file to write")
     pl.add_argument("--png", default=None, help="top view PNG (default: --out with .png)")

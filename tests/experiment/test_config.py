@@ -35,6 +35,10 @@ def test_every_group_option_composes_and_validates(group):
             assert cfg.refiner.name == option
 
 
+#: Presets that write into another experiment's folder (its report shows both).
+WRITES_INTO = {"cornell_own_counts": "cornell_comparison"}  # make demo's second sweep
+
+
 @pytest.mark.parametrize("preset", PRESETS)
 def test_every_swept_value_of_a_preset_validates(preset):
     params = sweep_params(preset)
@@ -42,7 +46,7 @@ def test_every_swept_value_of_a_preset_validates(preset):
     for key, values in params.items():
         for v in values:
             cfg = to_config(compose([f"+experiment={preset}", f"{key}={v}"]))
-            assert cfg.name == preset
+            assert cfg.name == WRITES_INTO.get(preset, preset)
 
 
 def test_placer_configs_are_the_registered_methods():
@@ -76,11 +80,19 @@ def test_bake_and_eval_groups_are_built_from_the_library_configs():
 
 
 def test_presets_cover_the_issue():
-    cornell = sweep_params("cornell_comparison")["method"]
     from probeplace.placement import REFINERS
 
-    assert {"grid", "lod_grid_64", "skeleton", "vardis"} <= set(cornell)
-    assert {f"skeleton_{r}" for r in REFINERS} <= set(cornell)
+    from ._util import CONFIGS
+
+    # make demo: the baselines, Wang's Gibbs sampler and a gradient refiner at the grid's count, 3 seeds,
+    # and the same methods at their own automatic counts; every refiner has its method config
+    cornell = sweep_params("cornell_comparison")
+    assert {"grid", "lod_grid_64", "skeleton", "vardis", "skeleton_gibbs"} <= set(cornell["method"])
+    assert any(f"skeleton_{r}" in cornell["method"] for r in REFINERS if r not in ("gibbs", "ascent"))
+    assert cornell["placer.budget"] == ["27"] and len(cornell["seed"]) >= 3
+    own = sweep_params("cornell_own_counts")
+    assert own["placer.budget"] == ["auto"] and set(own["method"]) <= set(cornell["method"])
+    assert all((CONFIGS / "method" / f"skeleton_{r}.yaml").is_file() for r in REFINERS)
     stab = sweep_params("stability")
     assert set(stab["scene"]) == {"rooms", "temple", "courtyard"}
     assert len(stab["seed"]) >= 10
@@ -93,6 +105,7 @@ BAD = [
     ({"placer": {"method": "random"}}, "placer.method"),
     ({"placer": {"target": 0.0}}, "placer.target"),
     ({"placer": {"n_opt_samples": "many"}}, "placer.n_opt_samples"),
+    ({"placer": {"coverage": "everything"}}, "placer.coverage: must be one of"),
     ({"placer": {"memory_budget": "12 parsecs"}}, "placer.memory_budget: memory budget must be"),
     ({"placer": {"memory_budget": "64MiB", "budget": 8}}, "placer.budget: must be 'auto' when"),
     ({"placer": {"clearance": -1.0}}, "placer.clearance"),

@@ -65,3 +65,27 @@ def test_place_bad_budget_and_space_options_are_one_line(argv, message, capsys):
     assert main(["place", "cornell_box", *argv]) == 2
     err = capsys.readouterr().err
     assert message in err and "Traceback" not in err
+
+
+def test_place_coverage_rule_reaches_the_fitness(tmp_path):
+    """``--coverage views`` is the fitness's rule (recorded with the search problem): on the Cornell box,
+    whose one view camera sees less than the probes can reach, the coverable area share is smaller and the
+    automatic budget needs no more probes."""
+    from probeplace._core import load_probe_set
+
+    meta = {}
+    for rule in ("reachable", "views"):
+        out = tmp_path / f"{rule}.json"
+        assert main(["place", "cornell_box", "--coverage", rule, "--out", str(out)]) == 0
+        meta[rule] = load_probe_set(out)[1]["metadata"]
+        assert meta[rule]["config"]["coverage"] == rule
+    share = {k: m["coverable_area_share"] for k, m in meta.items()}
+    assert 0 < share["views"] < share["reachable"]
+    assert meta["views"]["n_probes"] <= meta["reachable"]["n_probes"]
+
+
+def test_place_bad_coverage_rule(capsys):
+    with pytest.raises(SystemExit) as e:
+        main(["place", "cornell_box", "--coverage", "everything"])
+    assert e.value.code == 2
+    assert "--coverage" in capsys.readouterr().err

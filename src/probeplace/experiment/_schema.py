@@ -65,6 +65,9 @@ class PlacerConfig:
         region: where probes may go, ``{boxes: [[lo, hi], ...], height: [a, b]}``; ``None``: anywhere.
         objective: refiner objective: ``coverage``, ``wang`` or ``shading`` (docs/placement.md).
         target: coverage target of the automatic budget, in (0, 1].
+        coverage: which surface counts toward coverage: ``reachable`` (every surface a probe in the views'
+            reachable space sees head-on) or ``views`` (what the view cameras' positions see;
+            ``placement.FitnessConfig.coverage``).
         n_opt_samples: surface samples of the refiner's problem.
         options: the method's options (``placement.place``'s ``options``, e.g. ``{jitter: 0.5}`` for the
             grid); empty for methods without options.
@@ -77,6 +80,7 @@ class PlacerConfig:
     region: Any = None
     objective: str = "coverage"
     target: float = 1.0
+    coverage: str = "reachable"
     n_opt_samples: int = 1500
     options: dict[str, Any] = field(default_factory=dict)
 
@@ -359,11 +363,13 @@ def _check_run(cfg: ExperimentConfig) -> None:
 
 def _check_placer(cfg: ExperimentConfig) -> None:
     """The placement settings, checked where ``place`` checks them (``placement.PlaceRequest``)."""
-    from ..placement import PlaceRequest, Region, method_names, method_options, parse_bytes
+    from ..placement import COVERAGE_RULES, PlaceRequest, Region, method_names, method_options, parse_bytes
 
     p = cfg.placer
     if p.method not in method_names():
         _fail("placer.method", f"must be one of {method_names()}", p.method)
+    if p.coverage not in COVERAGE_RULES:
+        _fail("placer.coverage", f"must be one of {COVERAGE_RULES}", p.coverage)
     values = {
         "budget": p.budget,
         "refiner": None if cfg.refiner.name == "none" else cfg.refiner.name,

@@ -11,6 +11,7 @@ from ._budget import check_probe_count as check_probe_count
 from ._budget import count_for_memory as count_for_memory
 from ._budget import parse_bytes as parse_bytes
 from ._field import tighten_sdf as tighten_sdf
+from ._fitness import COVERAGE_RULES as COVERAGE_RULES
 from ._fitness import FitnessConfig as FitnessConfig
 from ._fitness import PlacementProblem as PlacementProblem
 from ._fitness import coverage_objective as coverage_objective

@@ -160,6 +160,7 @@ _FITNESS_KEYS = (
     "facing_softness",
     "two_sided",
     "clearance_voxels",
+    "coverage",
 )
 
 

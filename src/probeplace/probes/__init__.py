@@ -10,6 +10,7 @@ from ._bake import bake_depth_for as bake_depth_for
 from ._bake import bake_probes as bake_probes
 from ._bake import check_bake_settings as check_bake_settings
 from ._bake import default_radiance_res as default_radiance_res
+from ._bake import map_resolutions as map_resolutions
 from ._bake import pad_probes as pad_probes
 from ._bake import padded_capacity as padded_capacity
 from ._bake import path_traced_radiance as path_traced_radiance
@@ -32,6 +33,7 @@ from ._seen import origins_seen as origins_seen
 from ._trace import LightFieldTracer as LightFieldTracer
 from ._trace import TraceConfig as TraceConfig
 from ._trace import TraceResult as TraceResult
+from ._trace import check_tracer_memory as check_tracer_memory
 from ._trace import make_tracer as make_tracer
 from ._trace import trace_light_field as trace_light_field
 from ._trace import trace_probe as trace_probe

@@ -327,13 +327,19 @@ def batch_ray_bytes(n_probes: int, res: int, n_sub: int) -> int:
     return n_probes * res * res * n_sub**2 * 200
 
 
+def map_resolutions(scene: Scene, config: BakeConfig) -> tuple[int, int]:
+    """(radiance, geometry) map resolutions a bake of ``scene`` at ``config`` uses: the radiance maps'
+    from the scene's size unless given, the geometry maps' the radiance maps' unless given."""
+    res = config.radiance_res or default_radiance_res(scene, quality=config.quality)
+    return res, config.geometry_res or res
+
+
 def probe_bytes(scene: Scene, config: BakeConfig) -> int:
     """Bytes one baked probe holds at ``config`` (its maps as :class:`LightFieldProbes` stores them: float32
     radiance, emission, irradiance, moments and distance, the two int16 normal components
     (``_core._packed``) and the back-face bytes, all with their one-texel borders; position and flags):
     what a memory budget divides by (``placement._budget.count_for_memory``)."""
-    res = config.radiance_res or default_radiance_res(scene, quality=config.quality)
-    geo = config.geometry_res or res
+    res, geo = map_resolutions(scene, config)
     floats = 2 * (res + 2) ** 2 * 3  # radiance, emission
     floats += (config.irradiance_res + 2) ** 2 * 3 + (config.moments_res + 2) ** 2 * 2
     geometry = (geo + 2) ** 2 * (4 + 2 * 2 + 1)  # float32 distance, two int16 normal components, back face
@@ -545,8 +551,7 @@ def bake_probes(
         raise ConfigError(f"probe positions must be finite; {int((~np.isfinite(pos)).any(-1).sum())} are not")
     if pos.shape[0] == 0:
         raise ConfigError("cannot bake an empty probe set")
-    res = config.radiance_res or default_radiance_res(scene, quality=config.quality)
-    geo_res = config.geometry_res or res
+    res, geo_res = map_resolutions(scene, config)
     lo, hi = scene_box(scene, dtype=None)
     far = float(2.0 * np.linalg.norm(hi - lo))
 

@@ -430,6 +430,25 @@ def tracer_bytes(n_usable: int, res: int, subdivide: int) -> int:
     return int(n_usable) * (rb * rb * (4 + 3 * 2 + 1) + m * m + 2 * 2 * levels)
 
 
+def check_tracer_memory(n_usable: int, res: int, subdivide: int) -> None:
+    """Refuse a light-field tracer whose maps (:func:`tracer_bytes`) cannot fit (``_core.check_memory``):
+    in :func:`make_tracer`, and in the runner before the bake with the probes placed (usable ≤ placed), so
+    a set too large to trace is refused before minutes of baking.
+
+    Twice the maps, as when they were staged on the host and copied to JAX; they are now stacked in place
+    on the device (the peak is the maps plus one probe's working arrays), and the factor is kept as the
+    margin it has become.
+
+    Raises:
+        ResourceError: over the memory limit.
+    """
+    check_memory(
+        2 * tracer_bytes(n_usable, res, subdivide),
+        f"light-field tracer of {n_usable} usable probes at geometry_res={res}, subdivide={subdivide}",
+        "lower the geometry maps' resolution (BakeConfig.geometry_res), use fewer probes, or subdivide=1",
+    )
+
+
 @partial(jax.jit, static_argnums=1)
 def _first_rows(arrays: tuple[Array, ...], n: int) -> tuple[Array, ...]:
     """Stacks of ``n`` rows shaped like ``arrays``, row 0 set to them (one program, not one per array)."""
@@ -512,15 +531,7 @@ def make_tracer(
     usable = np.asarray(lf.active) & ~np.asarray(lf.inside)
     # The per-probe arrays of the usable probes only (issue 33: a grid in Sponza has 42 of 128 usable).
     keep = np.flatnonzero(usable)
-    # Before the index. Twice the maps, as when they were staged on the host and copied to JAX; they are
-    # now stacked in place on the device (the peak is the maps plus one probe's working arrays), and the
-    # factor is kept as the margin it has become.
-    check_memory(
-        2 * tracer_bytes(len(keep), res, config.subdivide),
-        f"light-field tracer of {len(keep)} usable probes at geometry_res={res}, "
-        f"subdivide={config.subdivide}",
-        "lower the geometry maps' resolution (BakeConfig.geometry_res), use fewer probes, or subdivide=1",
-    )
+    check_tracer_memory(len(keep), res, config.subdivide)  # before the index
     if index is None:
         try:
             index = grid_index(lf)
