@@ -35,5 +35,8 @@ def test_tracer_over_the_limit_is_refused_before_the_bake(tmp_path, monkeypatch)
         f"results_dir={tmp_path}",
     ]
     cfg = to_config(OmegaConf.to_container(compose(overrides), resolve=True))
-    with pytest.raises(ResourceError, match=r"light-field tracer of 8 usable probes at geometry_res=2048"):
+    with pytest.raises(
+        ResourceError,
+        match=r"light-field tracer of 8 placed probes \(all counted usable\) at geometry_res=2048",
+    ):
         run(cfg)

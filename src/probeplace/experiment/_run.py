@@ -483,14 +483,18 @@ def _place_stage(cfg: ExperimentConfig, scene, translation, partial: Path, final
 
 
 def _check_tracer_fits(cfg: ExperimentConfig, scene, probes) -> None:
-    """Refuse, before the bake, a placed set whose light-field tracer cannot fit in memory (every placed
-    probe counted usable: the bake decides which are inside geometry). A lod-grid at its automatic budget
-    (2,164 probes on the Cornell box, 38.5 GiB of tracer maps at 512²) baked for minutes before its
-    tracer was refused."""
+    """Refuse, before the bake, a placed set whose light-field tracer cannot fit in memory. Every placed
+    probe is counted usable (the bake decides which are inside geometry): an upper bound, so a set with
+    many probes in walls may be refused that would have fitted. A lod-grid at its automatic budget (2,164
+    probes on the Cornell box, 38.5 GiB of tracer maps at 512²) baked for minutes before its tracer was
+    refused."""
     from ..probes import check_tracer_memory, map_resolutions
 
+    n = int(np.asarray(probes.active).sum())
     geometry_res = map_resolutions(scene, bake_config(cfg))[1]
-    check_tracer_memory(int(np.asarray(probes.active).sum()), geometry_res, eval_config(cfg).trace.subdivide)
+    check_tracer_memory(
+        n, geometry_res, eval_config(cfg).trace.subdivide, "placed probes (all counted usable)"
+    )
 
 
 def _bake_stage(cfg: ExperimentConfig, scene, probes, key, partial: Path, timings, metrics):

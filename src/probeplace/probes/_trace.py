@@ -430,21 +430,21 @@ def tracer_bytes(n_usable: int, res: int, subdivide: int) -> int:
     return int(n_usable) * (rb * rb * (4 + 3 * 2 + 1) + m * m + 2 * 2 * levels)
 
 
-def check_tracer_memory(n_usable: int, res: int, subdivide: int) -> None:
+def check_tracer_memory(n_usable: int, res: int, subdivide: int, counted: str = "usable probes") -> None:
     """Refuse a light-field tracer whose maps (:func:`tracer_bytes`) cannot fit (``_core.check_memory``):
     in :func:`make_tracer`, and in the runner before the bake with the probes placed (usable ≤ placed), so
     a set too large to trace is refused before minutes of baking.
 
     Twice the maps, as when they were staged on the host and copied to JAX; they are now stacked in place
     on the device (the peak is the maps plus one probe's working arrays), and the factor is kept as the
-    margin it has become.
+    margin it has become. ``counted`` names what ``n_usable`` counts in the message.
 
     Raises:
         ResourceError: over the memory limit.
     """
     check_memory(
         2 * tracer_bytes(n_usable, res, subdivide),
-        f"light-field tracer of {n_usable} usable probes at geometry_res={res}, subdivide={subdivide}",
+        f"light-field tracer of {n_usable} {counted} at geometry_res={res}, subdivide={subdivide}",
         "lower the geometry maps' resolution (BakeConfig.geometry_res), use fewer probes, or subdivide=1",
     )
 
