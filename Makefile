@@ -38,7 +38,8 @@ TOOLS := $(STAMP) $(NODE_STAMP) $(LLVM_STAMP)
 
 # `make demo`: the cornell_comparison preset (the placement methods on the Cornell box at the grid's count,
 # 3 seeds, baked and evaluated; configs/experiment/cornell_comparison.yaml), cornell_own_counts (each
-# method at its own automatic count, seed 0), then their report: results/cornell_comparison/report/report.md. Finished runs are kept: a re-run only redoes what is missing.
+# method at its own automatic count, seed 0), then their report: results/cornell_comparison/report/report.md.
+# Finished runs are kept: a re-run only redoes what is missing.
 demo: $(STAMP) $(LLVM_STAMP)
 	@$(PY) experiments/run.py +experiment=cornell_comparison; rc=$$?; \
 	$(PY) experiments/run.py +experiment=cornell_own_counts || rc=1; \

@@ -70,21 +70,24 @@ def row(key, paper, where, paper_value, ours, paper_settings, our_settings, note
     }
 
 
-def auto_count(scene, coverage: str, seed: int = 0) -> tuple[int, float, float]:
+def placed(scene, budget, coverage: str, seed: int = 0):
+    """``place`` of the counts' method under a coverage rule (``placement.PlaceResult``)."""
+    from probeplace.placement import FitnessConfig, place
+
+    return place(scene, method=PLACEMENT, budget=budget, config=FitnessConfig(coverage=coverage), seed=seed)
+
+
+def auto_count(scene, coverage: str) -> tuple[int, float, float]:
     """(probes, coverage, seconds) of the automatic budget under a coverage rule."""
-    from probeplace.placement import FitnessConfig, place
-
     t0 = time.perf_counter()
-    placed = place(scene, method=PLACEMENT, budget="auto", config=FitnessConfig(coverage=coverage), seed=seed)
-    return placed.n_probes, float(placed.coverage), time.perf_counter() - t0
+    res = placed(scene, "auto", coverage)
+    return res.n_probes, float(res.coverage), time.perf_counter() - t0
 
 
-def placed_positions(scene, budget: int, coverage: str, seed: int = 0) -> np.ndarray:
+def placed_positions(scene, budget: int, coverage: str) -> np.ndarray:
     """Positions of a fixed-count placement."""
-    from probeplace.placement import FitnessConfig, place
-
-    placed = place(scene, method=PLACEMENT, budget=budget, config=FitnessConfig(coverage=coverage), seed=seed)
-    return np.asarray(placed.probes.pos_world, np.float64)[np.asarray(placed.probes.active)]
+    res = placed(scene, budget, coverage)
+    return np.asarray(res.probes.pos_world, np.float64)[np.asarray(res.probes.active)]
 
 
 def grid_coverage(scene, dims) -> float:
@@ -226,22 +229,10 @@ def settings_rows(rows: list, geometry_res: int, radiance_res: int) -> None:
     ))  # fmt: skip
 
 
-def ratio_interval(ratios: np.ndarray) -> tuple[float, list[float] | None]:
-    """Geometric mean of per-seed ratios and its t 95 % interval (a t-interval of the log ratios, mapped
-    back: always positive, symmetric for a ratio and its inverse); no interval below two seeds."""
-    from scipy import stats
-
-    logs = np.log(np.asarray(ratios, np.float64))
-    m = float(np.mean(logs))
-    if len(logs) < 2:
-        return math.exp(m), None
-    h = float(stats.t.ppf(0.975, len(logs) - 1) * np.std(logs, ddof=1) / math.sqrt(len(logs)))
-    return math.exp(m), [math.exp(m - h), math.exp(m + h)]
-
-
 def study(rows: list, args, coverage: str) -> None:
     """Wang's equal-count and equal-quality comparisons on Sponza (Fig. 11, §5.1), per seed."""
     import convergence as cv
+    from probeplace.experiment import seed_paired_ratio
 
     bargs = cv.parse_args(["--geometry-res", str(args.geometry_res)])
     bench = cv.Bench("sponza", bargs, cv.FULL["sponza"]["eval"])
@@ -264,7 +255,8 @@ def study(rows: list, args, coverage: str) -> None:
         ("8x4x4", "equal quality", 1.0, '§5.1: "an 8 × 4 × 4 regular grid is needed" to match 54 probes'),
     ):  # fmt: skip
         for comp, m in (("glossy", mse), ("diffuse", dif)):
-            mean, ci = ratio_interval(m["skeleton54"] / m[grid])
+            mean, lo, hi = seed_paired_ratio(list(zip(m["skeleton54"], m[grid], strict=True)))
+            ci = None if math.isnan(lo) else [lo, hi]
             rows.append(row(
                 f"sponza_54_{comp}_over_{grid}", WANG, where, value, mean,
                 f"modified Sponza, 54 non-uniform vs {grid}, 512² maps, 1900×1080, {claim}",

@@ -6,6 +6,7 @@ from ..placement import METHODS as PLACERS  # noqa: F401 (public: the placement 
 from ._report import load_runs as load_runs
 from ._report import make_report as make_report
 from ._report import pareto_front as pareto_front
+from ._report_data import seed_paired_ratio as seed_paired_ratio
 from ._results import DONE as DONE
 from ._results import is_complete as is_complete
 from ._results import iter_runs as iter_runs
