@@ -33,6 +33,7 @@ from ._seen import origins_seen as origins_seen
 from ._trace import LightFieldTracer as LightFieldTracer
 from ._trace import TraceConfig as TraceConfig
 from ._trace import TraceResult as TraceResult
+from ._trace import bound_table as bound_table
 from ._trace import check_tracer_memory as check_tracer_memory
 from ._trace import make_tracer as make_tracer
 from ._trace import trace_light_field as trace_light_field

@@ -144,7 +144,7 @@ def _surfel_test(tr, p, pc: _Piece, ij, t, t_exit):
     rows, cols = _candidates(tr, ij)
     w = tr.row[p]  # the probe's row of the per-probe maps
     xs, n, has = tr.surfels(w, rows, cols)
-    ambiguous = tr.ambiguous[w, jnp.clip(ij[0], 0, m - 1), jnp.clip(ij[1], 0, m - 1)]
+    ambiguous = tr.is_ambiguous(w, jnp.clip(ij[0], 0, m - 1), jnp.clip(ij[1], 0, m - 1))
     # Signed distances from each plane at the cell's ends, positive on the probe's side.
     g0 = jnp.sum(((o + t * d)[None, :] - xs) * n, axis=-1)
     g1 = jnp.sum(((o + t_exit * d)[None, :] - xs) * n, axis=-1)
@@ -165,8 +165,14 @@ def _surfel_test(tr, p, pc: _Piece, ij, t, t_exit):
     all_hit = jnp.all(hit | starts_here) & jnp.any(~starts_here)
     all_hit = all_hit & (t_last - t_first <= tr.config.thickness * jnp.linalg.norm(o + t_first * d))
     t_amb = jnp.where(hit[0], t_hit[0], t_first)
-    if tr.config.edge_on_deg is not None:  # as for one surface below, against the cell's own surfel
-        far_off = _edge_on(tr, xs[0], o, d, t_amb)
+    if tr.config.edge_on_deg is not None:
+        # As for one surface below, against the cell's own surfel, and against every surfel whose plane
+        # is met: at a silhouette a nearer surface's plane, extended across the cell, is met far behind
+        # its own surfel while the cell's own (a floor the ray starts on: ``starts_here``) says nothing.
+        # On Sponza (skeleton, 54 probes) one probe's such hits, 1–9 cm above the floor, made 72 % of the
+        # glossy error over the perfect trace.
+        met_far = jax.vmap(lambda x, th: _edge_on(tr, x, o, d, th))(xs, t_hit)
+        far_off = _edge_on(tr, xs[0], o, d, t_amb) | jnp.any(hit & met_far)
         blocks = blocks | (all_hit & far_off)
         all_hit = all_hit & ~far_off
     several = jnp.where(all_hit, HIT, jnp.where(jnp.any(blocks), UNKNOWN, MISS))

@@ -67,7 +67,7 @@ import equinox as eqx
 import jax
 import jax.numpy as jnp
 import numpy as np
-from jaxtyping import Array, Bool, Float, Int, UInt16
+from jaxtyping import Array, Bool, Float, Int, Shaped, UInt8, UInt16
 from scipy.spatial import cKDTree
 
 from .._core import ConfigError, LightFieldProbes, add_border, dot3, oct_encode, texel_directions
@@ -107,7 +107,9 @@ class TraceConfig:
             Sponza's 8×4×4 grid at 512² (seed 2), it turned 95 of the 154 resolved hits short of the exact
             one by more than 2 % — most of them in the probe's own free space (its exact ray in that
             direction met the surface farther) — into rays other probes resolved: agreement 0.891 → 0.924.
-            ``None``: off.
+            In an ambiguous cell every met candidate counts (until 2026-12-04 only the cell's own surfel:
+            a ray starting on a floor crossed a nearer column's extended plane 1 m behind that column and
+            took it for a hit). ``None``: off.
         max_probes: distinct probes a ray may try in all (McGuire: the 8 of a cage).
         fallback_probes: of those, how many may come from the search for probes that see the last free
             point, after the index's candidates (0: none). The index gets the rest (at least one).
@@ -223,7 +225,8 @@ class LightFieldTracer(eqx.Module):
         row: each probe's row in the per-probe maps below, which hold the usable probes only; an
             unusable probe's row is 0 and never read.
         surfel_r: per geometry texel, *bordered* ((R+2)², the octahedral neighbours across the fold in
-            the ring), the surfel's radial distance r (0: no surface); its point is r·ω_c
+            the ring), the surfel's radial distance r, 0 where the texel's ray hit nothing (its has-surface
+            flag: a surfel is never at the probe's centre, see :func:`_probe_cells`); its point is r·ω_c
             (:meth:`surfels`).
         texel_dirs: the bordered texels' sample directions ω_c, shared by every probe.
         surfel_n: the surfel's normal, turned toward the probe (bordered), bfloat16 (half the bytes; a
@@ -231,14 +234,18 @@ class LightFieldTracer(eqx.Module):
             float16: XLA:CPU converts float16 with library calls it cannot link on a CPU without F16C
             (``--xla_cpu_max_isa=SSE4_2``: "Symbols not found: __extendhfsf2"), bfloat16 with bit operations.
             Held as the values' uint16 bits (:func:`_bf16_bits`; read through :meth:`surfels`).
-        has_surface: the texel's ray hit something (its distance is below ``far``; bordered).
-        ambiguous: per march cell, the texel's surfel is not the only surface there (``_surfels``).
+        ambiguous_bits: per march cell, the texel's surfel is not the only surface there (``_surfels``),
+            eight cells of a row to a byte (:meth:`is_ambiguous`).
         bound_flat: per probe, the conservative lower bounds of all MIP levels 0 (M²) … top, flattened
-            (M = ``march_res``; min-MIP), as bfloat16 fractions of ``far`` rounded down (:meth:`lower`).
+            (M = ``march_res``; min-MIP), as one-byte codes of :attr:`bound_table`, rounded down
+            (:meth:`lower`).
         upper_flat: likewise the upper bounds beyond which the fine test says unknown (max-MIP), rounded
-            up (:meth:`upper`); uint16 bits like ``surfel_n``. Issue 33: 18.8 → 9.5 MB a usable probe at
-            512², ``subdivide`` 2, with the same answers up to the normals' rounding (a looser bound only
-            costs a step).
+            up (:meth:`upper`). Issue 33: 18.8 → 9.5 MB a usable probe at 512², ``subdivide`` 2, with
+            bfloat16 bounds; 5.6 MB with the one-byte codes, the flags as bits and the has-surface flag in
+            ``surfel_r`` (3.4 MB at ``subdivide`` 1). A looser bound only costs a step, never another
+            answer.
+        bound_table: the 256 distances the bound codes stand for (:func:`bound_table`): 0, then
+            ``far``·2^(2 − (255 − q)/21), 21 codes an octave (steps of 3.4 %) up to 4·``far``.
         spacing: the probes' typical spacing (median nearest-neighbour distance of the usable probes).
         far: distance stored for escaping rays.
         t_far: largest ray distance traced (the scene bounds' diagonal).
@@ -258,10 +265,10 @@ class LightFieldTracer(eqx.Module):
     surfel_r: Float[Array, "n_rows rb rb"]
     texel_dirs: Float[Array, "rb rb 3"]
     surfel_n: UInt16[Array, "n_rows rb rb 3"]
-    has_surface: Bool[Array, "n_rows rb rb"]
-    ambiguous: Bool[Array, "n_rows m m"]
-    bound_flat: UInt16[Array, "n_rows k"]
-    upper_flat: UInt16[Array, "n_rows k"]
+    ambiguous_bits: UInt8[Array, "n_rows m m8"]
+    bound_flat: UInt8[Array, "n_rows k"]
+    upper_flat: UInt8[Array, "n_rows k"]
+    bound_table: Float[Array, " 256"]
     spacing: Float[Array, ""]
     far: Float[Array, ""]
     t_far: Float[Array, ""]
@@ -292,15 +299,21 @@ class LightFieldTracer(eqx.Module):
         float32: the same points as r·ω_c computed at build time (one float32 product)."""
         r = self.surfel_r[w, rows, cols]
         n = _from_bf16_bits(self.surfel_n[w, rows, cols])
-        return r[..., None] * self.texel_dirs[rows, cols], n, self.has_surface[w, rows, cols]
+        return r[..., None] * self.texel_dirs[rows, cols], n, r > 0
+
+    def is_ambiguous(self, w, i, j) -> Array:
+        """Whether march cell (i, j) of map row ``w`` is ambiguous (its bit in ``ambiguous_bits``)."""
+        byte = self.ambiguous_bits[w, i, jnp.right_shift(j, 3)]
+        return (jnp.right_shift(byte, jnp.bitwise_and(j, 7).astype(jnp.uint8)) & 1) == 1
 
     def lower(self, w, flat) -> Array:
-        """Lower bound of MIP entry ``flat`` of map row ``w`` (float32; never above the exact bound)."""
-        return _from_bf16_bits(self.bound_flat[w, flat]) * self.far
+        """Lower bound of MIP entry ``flat`` of map row ``w`` (float32; never above the exact bound): a
+        table entry, no arithmetic, so both tracers and the build read the same value."""
+        return self.bound_table[self.bound_flat[w, flat]]
 
     def upper(self, w, flat) -> Array:
         """Upper bound of MIP entry ``flat`` of map row ``w`` (float32; never below the exact bound)."""
-        return _from_bf16_bits(self.upper_flat[w, flat]) * self.far
+        return self.bound_table[self.upper_flat[w, flat]]
 
 
 class TraceResult(eqx.Module):
@@ -346,8 +359,9 @@ def _geometry_maps(distance, normal, far):
     return x, nrm, has, omega
 
 
-def _mip_flat(level: Float[Array, "p m m"], how: str) -> Float[Array, "p k"]:
-    """All levels m², (m/2)², …, 1 of a min- or max-MIP chain, flattened per probe."""
+def _mip_flat(level: Shaped[Array, "p m m"], how: str) -> Shaped[Array, "p k"]:
+    """All levels m², (m/2)², …, 1 of a min- or max-MIP chain, flattened per probe (any ordered dtype:
+    the bounds' float32 values or their codes)."""
     levels = [level.reshape(level.shape[0], -1)]
     while level.shape[1] > 1:
         p, r = level.shape[0], level.shape[1]
@@ -359,7 +373,7 @@ def _mip_flat(level: Float[Array, "p m m"], how: str) -> Float[Array, "p k"]:
 
 @partial(jax.jit, static_argnames=("sub", "tol", "thickness"))
 def _probe_cells(distance, normal, far, cones_cells, cones_texels, *, sub: int, tol: float, thickness: float):
-    """ONE probe's bordered surfel distances, normals and has-surface flags, and its march cells' (lower
+    """ONE probe's bordered surfel distances (0: no surface) and normals, and its march cells' (lower
     bound, upper bound, ambiguous) per cell quadrant (``_surfels.probe_cells_quadrants``), as one compiled
     program. The cells' and texels' cones (``_surfels.cell_cones``) are arguments, computed once per
     resolution for all probes."""
@@ -370,9 +384,11 @@ def _probe_cells(distance, normal, far, cones_cells, cones_texels, *, sub: int, 
     cells = probe_cells_quadrants(
         xb[0], nb[0], hb[0], wb, cones_cells, cones_texels, sub=sub, tol=tol, thickness=thickness, big=big
     )
-    # Stored compactly (LightFieldTracer): the radial distance, not the point; bfloat16 normals.
-    radial = jnp.where(hb[0], jnp.asarray(distance, jnp.float32), 0.0)
-    return radial, _bf16_bits(nb[0]), hb[0], cells, wb
+    # Stored compactly (LightFieldTracer): the radial distance, not the point, 0 for no surface (a hit at
+    # the probe's centre, never baked, would read as none: kept above 0); bfloat16 normals.
+    dist = jnp.maximum(jnp.asarray(distance, jnp.float32), jnp.finfo(jnp.float32).tiny)
+    radial = jnp.where(hb[0], dist, 0.0)
+    return radial, _bf16_bits(nb[0]), cells, wb
 
 
 def _bf16_bits(x):
@@ -387,47 +403,81 @@ def _from_bf16_bits(bits):
     return jax.lax.bitcast_convert_type(bits, jnp.bfloat16).astype(jnp.float32)
 
 
-def _bf16_fraction(v, far, down: bool):
-    """``v`` / ``far`` as bfloat16, rounded down (or up) so that bfloat16 · far in float32 never crosses v:
-    1e-6 of slack for the float32 product, then one bfloat16 step whenever rounding went the wrong way
-    (a bound looser by < 0.8 %: a step more now and then, never another answer)."""
-    frac = v / far * (1 - 1e-6 if down else 1 + 1e-6)
-    h = frac.astype(jnp.bfloat16)
-    wrong = h.astype(jnp.float32) > frac if down else h.astype(jnp.float32) < frac
-    return jnp.where(wrong, jnp.nextafter(h, jnp.bfloat16(-jnp.inf if down else jnp.inf)), h)
+#: Bound codes an octave (:func:`bound_table`): steps of 2^(1/21) = 3.4 % between codes.
+_BOUND_CODES_PER_OCTAVE = 21
+
+
+def bound_table(far) -> Float[Array, " 256"]:
+    """The distances the tracer's one-byte bound codes stand for: code 0 is 0, code q ≥ 1 is
+    ``far``·2^(2 − (255 − q)/21), from 9e-4·``far`` to 4·``far`` (the bounds' cap, ``_surfels``'
+    ``big``). Bounds are rounded outward to them (:func:`_bound_codes`), as Wang 2019 §5.3 stores its
+    min/max depth MIPs at reduced precision (RG16F); one byte here, the codes' 3.4 % steps only cost steps."""
+    q = np.arange(256, dtype=np.float64)
+    frac = np.where(q > 0, 2.0 ** (2.0 - (255.0 - q) / _BOUND_CODES_PER_OCTAVE), 0.0).astype(np.float32)
+    return jnp.asarray(frac * np.float32(far))  # on the host: no compiled program for 256 products
+
+
+def _bound_codes(v, table, down: bool):
+    """Codes of ``table`` (:func:`bound_table`) for the values ``v`` that never cross them: an entry ≤ v
+    (``down``: a lower bound) or ≥ v (an upper bound; ``v`` ≤ the table's top, the surfels' ``big``). The
+    code is the table's closed form rounded outward, then checked against the table itself and moved one
+    step further out if it crossed (float32 log2 and the table's rounding are off by < 1e-4 of a code):
+    exact on the safe side, the nearest code but now and then for a value within 1e-4 of a code of an
+    entry. One gather a value (a search took ~35 s of ``make_tracer`` for 128 probes at 512²)."""
+    est = jnp.log2(jnp.maximum(v, jnp.finfo(jnp.float32).tiny) / table[255]) * _BOUND_CODES_PER_OCTAVE + 255
+    if down:
+        q = jnp.clip(jnp.floor(est), 0.0, 255.0).astype(jnp.int32)
+        q = jnp.where(table[q] > v, q - 1, q)
+    else:
+        q = jnp.clip(jnp.ceil(est), 0.0, 255.0).astype(jnp.int32)
+        q = jnp.where(table[q] < v, q + 1, q)
+    return jnp.clip(q, 0, 255).astype(jnp.uint8)
+
+
+def _pack_bits(flags: Bool[Array, "m m"]) -> UInt8[Array, "m m8"]:
+    """Rows of flags as bytes, eight columns to a byte, column j in bit j mod 8 of byte j // 8."""
+    m = flags.shape[1]
+    pad = -m % 8
+    f = jnp.pad(flags, ((0, 0), (0, pad))).reshape(flags.shape[0], -1, 8).astype(jnp.uint8)
+    return jnp.sum(jnp.left_shift(f, jnp.arange(8, dtype=jnp.uint8)[None, None, :]), axis=-1, dtype=jnp.uint8)
 
 
 @jax.jit
-def _cell_maps(lower_q, upper_q, ambiguous_q, far):
-    """The quadrant lists of :func:`_probe_cells` as the (m, m) ambiguous cells and the flattened min-MIP
-    of the lower bounds and max-MIP of the upper bounds (bfloat16 fractions of ``far``, rounded outward): a
+def _cell_maps(lower_q, upper_q, ambiguous_q, table):
+    """The quadrant lists of :func:`_probe_cells` as the (m, m) ambiguous cells' bits and the flattened
+    min-MIP of the lower bounds and max-MIP of the upper bounds (codes of ``table``, rounded outward): a
     program of its own, so that the interleave copies materialised arrays
     (``_surfels.interleave_quadrants``)."""
     lower, upper, ambiguous = (interleave_quadrants(a) for a in (lower_q, upper_q, ambiguous_q))
-    lo, hi = _mip_flat(lower[None], "min")[0], _mip_flat(upper[None], "max")[0]
-    lo, hi = _bf16_fraction(lo, far, down=True), _bf16_fraction(hi, far, down=False)
-    return ambiguous, _bf16_bits(lo), _bf16_bits(hi)
+    # Coded before the MIP: rounding outward is monotone, so the min (max) of codes is the code of the min
+    # (max), and only the finest level is coded.
+    lo = _mip_flat(_bound_codes(lower, table, down=True)[None], "min")[0]
+    hi = _mip_flat(_bound_codes(upper, table, down=False)[None], "max")[0]
+    return _pack_bits(ambiguous), lo, hi
 
 
-def _probe_maps(distance, normal, far, cones_cells, cones_texels, *, sub: int, tol: float, thickness: float):
+def _probe_maps(
+    distance, normal, far, cones_cells, cones_texels, table, *, sub: int, tol: float, thickness: float
+):
     """ONE probe's tracer arrays from its baked maps (two compiled programs; issue 32: eagerly, the set-up
     was ~200 small programs; one probe at a time, so any probe count reuses them): bordered surfel
-    distances, normals and has-surface flags, the ambiguous cells, and the bound pyramids
-    (:class:`LightFieldTracer`'s layout); last, the bordered texel directions (the same for every probe)."""
+    distances, normals, the ambiguous cells' bits, and the bound pyramids' codes
+    (:class:`LightFieldTracer`'s layout, the bounds as codes of ``table``); last, the bordered texel
+    directions (the same for every probe)."""
     kw = dict(sub=sub, tol=tol, thickness=thickness)
-    rb, nb, hb, cells, directions = _probe_cells(distance, normal, far, cones_cells, cones_texels, **kw)
-    return rb, nb, hb, *_cell_maps(*cells, jnp.asarray(far, jnp.float32)), directions
+    rb, nb, cells, directions = _probe_cells(distance, normal, far, cones_cells, cones_texels, **kw)
+    return rb, nb, *_cell_maps(*cells, table), directions
 
 
 def tracer_bytes(n_usable: int, res: int, subdivide: int) -> int:
     """Bytes of a tracer's per-probe maps (:class:`LightFieldTracer`) for ``n_usable`` usable probes at
-    geometry resolution ``res``: bordered surfel distances (float32), normals (bfloat16 × 3) and
-    has-surface flags, ambiguous cells (bool) and the lower- and upper-bound pyramids (bfloat16, every
-    level) of the ``res·subdivide``² march cells. 9.5 MB a probe at 512², ``subdivide`` 2 (the shared
-    texel directions, 3 MB once, are not counted)."""
+    geometry resolution ``res``: bordered surfel distances (float32) and normals (bfloat16 × 3), the
+    ambiguous cells' bits and the lower- and upper-bound pyramids (a byte a code, every level) of the
+    ``res·subdivide``² march cells. 5.6 MB a probe at 512², ``subdivide`` 2; 3.4 MB at ``subdivide`` 1
+    (the shared texel directions, 3 MB once, are not counted)."""
     rb, m = res + 2, res * subdivide
     levels = sum((m >> k) ** 2 for k in range(m.bit_length()))
-    return int(n_usable) * (rb * rb * (4 + 3 * 2 + 1) + m * m + 2 * 2 * levels)
+    return int(n_usable) * (rb * rb * (4 + 3 * 2) + m * -(-m // 8) + 2 * levels)
 
 
 def check_tracer_memory(n_usable: int, res: int, subdivide: int, counted: str = "usable probes") -> None:
@@ -458,14 +508,16 @@ def _first_rows(arrays: tuple[Array, ...], n: int) -> tuple[Array, ...]:
 @partial(jax.jit, donate_argnums=0)
 def _set_rows(stacks: tuple[Array, ...], arrays: tuple[Array, ...], i) -> tuple[Array, ...]:
     """``stacks[k][i] = arrays[k]`` in place (the stacks are donated): a small program per probe count,
-    instead of staging every probe's maps on the host and copying them back (2 × 9.5 MB a probe at 512²)."""
+    instead of staging every probe's maps on the host and copying them back (2 × 5.6 MB a probe at 512²)."""
     return tuple(s.at[i].set(a) for s, a in zip(stacks, arrays, strict=True))
 
 
-def _all_probe_maps(lf: LightFieldProbes, keep, config: TraceConfig) -> tuple[tuple[Array, ...], Array]:
+def _all_probe_maps(
+    lf: LightFieldProbes, keep, config: TraceConfig, table
+) -> tuple[tuple[Array, ...], Array]:
     """:func:`_probe_maps` of the probes ``keep``, stacked in that order (one probe at a time: no big
     program per probe count), with a progress bar when there is much to do; and the bordered texel
-    directions."""
+    directions. ``table``: the bound codes' table (:func:`bound_table`), the tracer's own."""
     kw = dict(sub=config.subdivide, tol=config.edge_tol, thickness=config.thickness)
     res = lf.geometry_res
     big_job = len(keep) * (res * config.subdivide) ** 2 >= 2**22  # ~ a few seconds and more
@@ -474,7 +526,7 @@ def _all_probe_maps(lf: LightFieldProbes, keep, config: TraceConfig) -> tuple[tu
     out = directions = None
     for i, p in enumerate(keep):
         # one probe's normals unpacked at a time (a 1024-probe set at 512² would be 3 GiB as float32)
-        *arrays, directions = _probe_maps(lf.distance[p], lf.normal_at(p), lf.far, *cones, **kw)
+        *arrays, directions = _probe_maps(lf.distance[p], lf.normal_at(p), lf.far, *cones, table, **kw)
         if out is None:
             out = _first_rows(tuple(arrays), len(keep))
         else:
@@ -538,8 +590,9 @@ def make_tracer(
         except ConfigError:
             index = voxel_index(lf, b)
     far = jnp.asarray(lf.far, jnp.float32)
-    maps, texel_dirs = _all_probe_maps(lf, keep if len(keep) else [0], config)
-    rb, nb, hb, ambiguous, bound_flat, upper_flat = maps
+    table = bound_table(far)  # one array: the build codes against the entries the march reads
+    maps, texel_dirs = _all_probe_maps(lf, keep if len(keep) else [0], config, table)
+    rb, nb, ambiguous_bits, bound_flat, upper_flat = maps
     row = np.zeros(len(pos), np.int32)  # unusable probes: row 0, never read (the index skips them)
     row[keep] = np.arange(len(keep), dtype=np.int32)
     # scalars and masks on the host (float32 as before): each eager jnp operation is one more program
@@ -552,10 +605,10 @@ def make_tracer(
         surfel_r=rb,
         texel_dirs=texel_dirs,
         surfel_n=nb,
-        has_surface=hb,
-        ambiguous=ambiguous,
+        ambiguous_bits=ambiguous_bits,
         bound_flat=bound_flat,
         upper_flat=upper_flat,
+        bound_table=table,
         spacing=jnp.asarray(spacing, jnp.float32),
         far=far,
         t_far=jnp.asarray(np.linalg.norm(bn[1] - bn[0]) * np.float32(1.01), jnp.float32),
@@ -586,7 +639,7 @@ def _sees(tr: LightFieldTracer, probes: Int[Array, " k"], x: Float[Array, "3"]) 
         g = jnp.sum((rel[None, :] - xs) * n, axis=-1)
         front = ~has | (g > tr.config.fallback_margin * jnp.linalg.norm(xs, axis=-1))
         # one surface: in front of its own plane and its concave-crease partners' (``_march._partners``)
-        return jnp.all(front | ~jnp.where(tr.ambiguous[w, ij[0], ij[1]], True, _partners(tr, xs, n, has)))
+        return jnp.all(front | ~jnp.where(tr.is_ambiguous(w, ij[0], ij[1]), True, _partners(tr, xs, n, has)))
 
     return (probes >= 0) & tr.usable[q] & jax.vmap(one)(q, ij, rel)
 
