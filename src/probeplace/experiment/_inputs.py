@@ -38,7 +38,9 @@ from urllib.parse import unquote
 #: evaluation, a built-in scene's generator, a default that ``config.yaml`` does not record): every run
 #: finished under another version is then refused as stale (``redo=stale`` redoes it). Not the git
 #: revision: a docs or test commit must not invalidate results (the revision stays in ``env.json``).
-RESULTS_VERSION = 1
+#: 2 (2026-12-04): the light-field tracer's edge-on rule covers every candidate surfel an ambiguous cell's
+#: ray meets, which moves glossy estimates (issue 33).
+RESULTS_VERSION = 2
 
 #: Input keys recorded but not compared (flattened, as the refusal names them).
 NOT_COMPARED = ("scene.path",)
