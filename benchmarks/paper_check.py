@@ -198,7 +198,7 @@ def memory(rows: list, scenes: dict, geometry_res: int, radiance_res: int) -> No
         (512 * 512 * 2 + 512 * 512 * 4 * 4 / 3) / 1e6, tracer_bytes(1, geometry_res, sub) / 1e6,
         "a 512² probe's distance and its min/max pyramid", f"light-field tracer maps of one usable probe at "
         f"{geometry_res}² (probes.tracer_bytes, {sub} march cells per texel and axis)",
-        "ours adds normals, ambiguity bits and per-half-texel plane bounds (one-byte codes; issue 33: ≤ 4 MB)",
+        "ours adds normals, ambiguity bits and plane bounds above the half-texel cells (one-byte codes)",
     ))  # fmt: skip
     res = 128
     luo = probe_bytes(cornell, BakeConfig(radiance_res=res, geometry_res=res)) / 1e3

@@ -21,7 +21,7 @@ def test_tracer_over_the_limit_is_refused_before_the_bake(tmp_path, monkeypatch)
         raise AssertionError("the bake started before the tracer's memory was checked")
 
     monkeypatch.setattr(probeplace.probes, "bake_probes", boom)
-    limit = 2**30  # 8 probes' 2048² maps (~0.3 GB) fit; their tracer (2 × ~0.7 GB) does not
+    limit = 2**29  # 8 probes' 2048² maps (~0.3 GB) fit; their tracer (2 × ~0.44 GB) does not
     assert 8 * 2050**2 * 9 < limit < 2 * tracer_bytes(8, 2048, 2)
     monkeypatch.setenv("PROBEPLACE_MAX_BYTES", str(limit))
     overrides = [

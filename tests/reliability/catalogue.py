@@ -316,11 +316,11 @@ _PS = "probeplace.ProbeSet/1"
 
 
 def _tracer_over_limit(c):
-    """make_tracer of the baked Cornell probes with the memory limit at 50 kB (restored afterwards)."""
+    """make_tracer of the baked Cornell probes with the memory limit at 20 kB (restored afterwards)."""
     from probeplace.probes import make_tracer
 
     lf = c.baked()
-    with _limit("50KB"):
+    with _limit("20KB"):  # 7 usable probes' 16² maps are 2 × 28 kB
         return make_tracer(lf, c.cornell().bounds)
 
 
@@ -629,7 +629,7 @@ CATALOGUE: list[Entry] = [
     Entry(
         "tracer-too-large",
         "memory",
-        "light-field tracer over the memory limit ($PROBEPLACE_MAX_BYTES=50KB; 16² maps of 8 probes)",
+        "light-field tracer over the memory limit ($PROBEPLACE_MAX_BYTES=20KB; 16² maps of 8 probes)",
         _tracer_over_limit,
         ResourceError,
         r"light-field tracer of \d+ usable probes at geometry_res=16, subdivide=2 needs ~\d+ bytes .* over "

@@ -40,7 +40,9 @@ from urllib.parse import unquote
 #: revision: a docs or test commit must not invalidate results (the revision stays in ``env.json``).
 #: 2 (2026-12-04): the light-field tracer's edge-on rule covers every candidate surfel an ambiguous cell's
 #: ray meets, which moves glossy estimates (issue 33).
-RESULTS_VERSION = 2
+#: 3 (2026-12-04): a ray starts on a surfel's surface only within ``TraceConfig.start_tol`` in front of
+#: its plane (was the thickness): rays leaving a surface next to another hit it (issue 33).
+RESULTS_VERSION = 3
 
 #: Input keys recorded but not compared (flattened, as the refusal names them).
 NOT_COMPARED = ("scene.path",)

@@ -153,7 +153,10 @@ def _surfel_test(tr, p, pc: _Piece, ij, t, t_exit):
     cross_in = (g0 >= 0) & (g1 < 0)
     t_hit = jnp.where(cross_in, t + (t_exit - t) * g0 / jnp.where(cross_in, g0 - g1, 1.0), t)
     in_shell = (g0 < 0) & (g0 >= -tau)
-    starts_here = jnp.abs(jnp.sum((o[None, :] - xs) * n, axis=-1)) <= tau  # the ray's origin is on it
+    # The ray's origin is on the surfel's surface (TraceConfig.start_tol): behind its plane within the
+    # thickness, or in front of it by no more than the plane's own error there.
+    g_o = jnp.sum((o[None, :] - xs) * n, axis=-1)
+    starts_here = (g_o >= -tau) & (g_o <= tr.config.start_tol * jnp.linalg.norm(xs, axis=-1))
     hit = has & (cross_in | (in_shell & deeper)) & ~starts_here
     # One surface: its own surfel decides. Ambiguous: free only in front of every candidate (bar the
     # surface the ray starts on, unless deep behind it); a hit only where every candidate is met at
@@ -164,6 +167,9 @@ def _surfel_test(tr, p, pc: _Piece, ij, t, t_exit):
     t_last = jnp.max(jnp.where(hit, t_hit, -jnp.inf))
     all_hit = jnp.all(hit | starts_here) & jnp.any(~starts_here)
     all_hit = all_hit & (t_last - t_first <= tr.config.thickness * jnp.linalg.norm(o + t_first * d))
+    # Not where the ray is already deep behind a candidate (one it starts on): the cell's upper bound
+    # (``_surfels``), which the march read here until the finest level's bounds were dropped, says unknown.
+    all_hit = all_hit & ~jnp.any(has & (g0 < -tau))
     t_amb = jnp.where(hit[0], t_hit[0], t_first)
     if tr.config.edge_on_deg is not None:
         # As for one surface below, against the cell's own surfel, and against every surfel whose plane
@@ -230,18 +236,19 @@ def _march_step(tr, p, pc: _Piece, tb, span, t_min, c):
     The per-ray march (:func:`_trace_segment`) and the wavefront tracer (``_wavefront``) both step with
     it, so they give the same answers."""
     m = tr.march_res
-    offsets = jnp.asarray([tr.level_offset(k) for k in range(tr.n_levels)], jnp.int32)
+    offsets = jnp.asarray([0] + [tr.level_offset(k) for k in range(1, tr.n_levels)], jnp.int32)
     o, d = pc.o, pc.d
     _status, t, steps, texel, level, ij = c
     cells = jnp.right_shift(jnp.int32(m), level)
     t_exit, step_u = _cell_exit(pc, ij, cells, t, tb, span)
-    # Skip test: the whole cell's ray interval in front of every candidate surfel's lower bound?
-    # Deep test: the ray, where it is now, beyond every fine cell's upper bound (behind them all)?
-    flat = offsets[level] + ij[0] * cells + ij[1]
+    # Above the finest level (whose bounds are not stored, ``_trace._cell_maps``: there the fine test
+    # decides alone), skip test: the whole cell's ray interval in front of every candidate surfel's lower
+    # bound? Deep test: the ray, where it is now, beyond every fine cell's upper bound (behind them all)?
+    at_fine = level == 0
+    flat = jnp.where(at_fine, 0, offsets[level] + ij[0] * cells + ij[1])
     rho_t = jnp.linalg.norm(o + t * d)
     skip = jnp.maximum(rho_t, jnp.linalg.norm(o + t_exit * d)) < tr.lower(tr.row[p], flat)
-    deep = rho_t > tr.upper(tr.row[p], flat)
-    at_fine = level == 0
+    deep = ~at_fine & (rho_t > tr.upper(tr.row[p], flat))
     fine, t_hit, fine_texel = _surfel_test(tr, p, pc, ij, t, t_exit)
     fine_texel = jnp.where(at_fine, fine_texel, _cell_at(pc, t, jnp.int32(m)) // tr.sub)
     status = jnp.where(deep, jnp.int32(UNKNOWN), jnp.where(at_fine, fine, jnp.int32(MISS)))

@@ -18,8 +18,9 @@ probe's side of its plane), *crosses* it, or is *behind* it. A crossing is a hit
 crossing; a ray behind the surfel by more than the surface *thickness* has entered space the probe cannot
 see → unknown, stopping at the cell's entry (the last point the probe saw in free space). Inside the
 thickness shell a ray moving deeper is a hit, one moving out continues (a surfel is only a planar
-approximation of a curved surface). A ray whose origin lies in a surfel's shell starts on that surface
-(a secondary ray): it is not a hit on it. A cell where the texel's surfel and a neighbour's are not one
+approximation of a curved surface). A ray whose origin lies in a surfel's shell behind its plane, or
+in front of it within the plane's own error (``start_tol``), starts on that surface (a secondary ray):
+it is not a hit on it. A cell where the texel's surfel and a neighbour's are not one
 surface (a silhouette, ``_surfels``) is *ambiguous*: only "in front of every candidate surfel" passes;
 anything else is unknown, for another probe to decide. A one-surface cell whose surfel meets a neighbour's
 in a *concave crease* (a room's corner) is bounded by both planes: in front of both is free, its own plane
@@ -95,6 +96,16 @@ class TraceConfig:
         hiz_skip_top: hi-Z: how many of the coarsest MIP levels never to use (Wang: "avoid the coarsest").
         thickness: surface thickness as a fraction of the surfel's radial distance (McGuire's
             ``minThickness``/``maxThickness`` scale with distance the same way).
+        start_tol: a ray starts on a surfel's surface — its plane is not taken for a hit, the ray is
+            leaving it (a secondary ray) — when its origin lies behind the plane by at most the thickness
+            or in front of it by at most this fraction of the surfel's distance (the plane's own error
+            where the origin lies: bfloat16 normals, a texel's width of curvature). A secondary ray never
+            enters the surface it leaves, so a plane the origin lies clearly in front of is another
+            surface: a ray leaving a floor 14 cm from a wall crosses the wall's plane, a hit. Until
+            2026-12-04 (results version 2) the thickness counted in front too: such rays passed through the
+            wall (to a far hit, or unknown); on Sponza at 512² (CameraMain's glossy rays) this took the
+            hits agreeing with exact casting from 0.922 to 0.942 (16×8×8) and 0.928 to 0.954 (8×4×4), and
+            the unresolved rays among those whose origin a probe sees from 10.2 % to 9.1 %.
         subdivide: march cells per geometry texel and axis: 2 (a cell per quarter texel, so only the
             half-texel next to a silhouette is ambiguous) or 1.
         edge_tol: relative tolerance of the one-surface test between neighbouring surfels (``_surfels``);
@@ -133,6 +144,7 @@ class TraceConfig:
     coarse_factor: int = 16
     hiz_skip_top: int = 1
     thickness: float = 0.03
+    start_tol: float = 1e-3
     subdivide: int = 2
     edge_tol: float | None = 0.05
     edge_on_deg: float | None = 84.5
@@ -162,6 +174,7 @@ class TraceConfig:
                 raise ConfigError(f"TraceConfig.{name} must be an int, got {v!r}")
         for name in (
             "thickness",
+            "start_tol",
             "bounds_margin",
             "fallback_margin",
             "fallback_radius",
@@ -190,6 +203,8 @@ class TraceConfig:
             raise ConfigError(f"TraceConfig.hiz_skip_top must be ≥ 0, got {self.hiz_skip_top}")
         if not (0.0 <= self.thickness < 1.0):
             raise ConfigError(f"TraceConfig.thickness must be in [0, 1), got {self.thickness}")
+        if not (0.0 <= self.start_tol < 1.0):
+            raise ConfigError(f"TraceConfig.start_tol must be in [0, 1), got {self.start_tol}")
         if self.subdivide not in (1, 2):
             raise ConfigError(f"TraceConfig.subdivide must be 1 or 2, got {self.subdivide}")
         if self.edge_tol is not None and not self.edge_tol > 0:
@@ -236,14 +251,15 @@ class LightFieldTracer(eqx.Module):
             Held as the values' uint16 bits (:func:`_bf16_bits`; read through :meth:`surfels`).
         ambiguous_bits: per march cell, the texel's surfel is not the only surface there (``_surfels``),
             eight cells of a row to a byte (:meth:`is_ambiguous`).
-        bound_flat: per probe, the conservative lower bounds of all MIP levels 0 (M²) … top, flattened
+        bound_flat: per probe, the conservative lower bounds of MIP levels 1 ((M/2)²) … top, flattened
             (M = ``march_res``; min-MIP), as one-byte codes of :attr:`bound_table`, rounded down
-            (:meth:`lower`).
+            (:meth:`lower`). Level 0, the march cells, is not stored: there the fine test reads the
+            surfels themselves (``_march._march_step``).
         upper_flat: likewise the upper bounds beyond which the fine test says unknown (max-MIP), rounded
             up (:meth:`upper`). Issue 33: 18.8 → 9.5 MB a usable probe at 512², ``subdivide`` 2, with
             bfloat16 bounds; 5.6 MB with the one-byte codes, the flags as bits and the has-surface flag in
-            ``surfel_r`` (3.4 MB at ``subdivide`` 1). A looser bound only costs a step, never another
-            answer.
+            ``surfel_r``; 3.5 MB without level 0 (2.8 MB at ``subdivide`` 1). A looser bound only costs a
+            step, never another answer.
         bound_table: the 256 distances the bound codes stand for (:func:`bound_table`): 0, then
             ``far``·2^(2 − (255 − q)/21), 21 codes an octave (steps of 3.4 %) up to 4·``far``.
         spacing: the probes' typical spacing (median nearest-neighbour distance of the usable probes).
@@ -292,7 +308,9 @@ class LightFieldTracer(eqx.Module):
         return int(math.log2(self.march_res)) + 1
 
     def level_offset(self, level: int) -> int:
-        return sum((self.march_res >> k) ** 2 for k in range(level))
+        """Where MIP level ``level`` ≥ 1 starts in :attr:`bound_flat` / :attr:`upper_flat` (level 0, the
+        march cells themselves, is not stored: :func:`_cell_maps`)."""
+        return sum((self.march_res >> k) ** 2 for k in range(1, level))
 
     def surfels(self, w, rows, cols) -> tuple[Array, Array, Array]:
         """(points r·ω_c, normals, has-surface) of the bordered texels (rows, cols) of map row ``w``, in
@@ -445,14 +463,20 @@ def _pack_bits(flags: Bool[Array, "m m"]) -> UInt8[Array, "m m8"]:
 @jax.jit
 def _cell_maps(lower_q, upper_q, ambiguous_q, table):
     """The quadrant lists of :func:`_probe_cells` as the (m, m) ambiguous cells' bits and the flattened
-    min-MIP of the lower bounds and max-MIP of the upper bounds (codes of ``table``, rounded outward): a
-    program of its own, so that the interleave copies materialised arrays
-    (``_surfels.interleave_quadrants``)."""
+    min-MIP of the lower bounds and max-MIP of the upper bounds (codes of ``table``, rounded outward),
+    levels 1 … top: a program of its own, so that the interleave copies materialised arrays
+    (``_surfels.interleave_quadrants``).
+
+    Level 0 is dropped (issue 33: 2.1 of the 5.6 MB a probe at 512², ``subdivide`` 2): the march never reads
+    a finest cell's lower bound (there it runs the fine test, it does not skip), and a ray beyond a
+    finest cell's upper bound is deep behind one of its candidate surfels, which the fine test reads and
+    calls unknown itself (``_march._surfel_test``)."""
     lower, upper, ambiguous = (interleave_quadrants(a) for a in (lower_q, upper_q, ambiguous_q))
     # Coded before the MIP: rounding outward is monotone, so the min (max) of codes is the code of the min
     # (max), and only the finest level is coded.
-    lo = _mip_flat(_bound_codes(lower, table, down=True)[None], "min")[0]
-    hi = _mip_flat(_bound_codes(upper, table, down=False)[None], "max")[0]
+    finest = lower.size
+    lo = _mip_flat(_bound_codes(lower, table, down=True)[None], "min")[0, finest:]
+    hi = _mip_flat(_bound_codes(upper, table, down=False)[None], "max")[0, finest:]
     return _pack_bits(ambiguous), lo, hi
 
 
@@ -472,11 +496,11 @@ def _probe_maps(
 def tracer_bytes(n_usable: int, res: int, subdivide: int) -> int:
     """Bytes of a tracer's per-probe maps (:class:`LightFieldTracer`) for ``n_usable`` usable probes at
     geometry resolution ``res``: bordered surfel distances (float32) and normals (bfloat16 × 3), the
-    ambiguous cells' bits and the lower- and upper-bound pyramids (a byte a code, every level) of the
-    ``res·subdivide``² march cells. 5.6 MB a probe at 512², ``subdivide`` 2; 3.4 MB at ``subdivide`` 1
+    ambiguous cells' bits and the lower- and upper-bound pyramids (a byte a code, levels 1 … top) of the
+    ``res·subdivide``² march cells. 3.5 MB a probe at 512², ``subdivide`` 2; 2.8 MB at ``subdivide`` 1
     (the shared texel directions, 3 MB once, are not counted)."""
     rb, m = res + 2, res * subdivide
-    levels = sum((m >> k) ** 2 for k in range(m.bit_length()))
+    levels = sum((m >> k) ** 2 for k in range(1, m.bit_length()))  # level 0 is not stored
     return int(n_usable) * (rb * rb * (4 + 3 * 2) + m * -(-m // 8) + 2 * levels)
 
 
@@ -508,7 +532,7 @@ def _first_rows(arrays: tuple[Array, ...], n: int) -> tuple[Array, ...]:
 @partial(jax.jit, donate_argnums=0)
 def _set_rows(stacks: tuple[Array, ...], arrays: tuple[Array, ...], i) -> tuple[Array, ...]:
     """``stacks[k][i] = arrays[k]`` in place (the stacks are donated): a small program per probe count,
-    instead of staging every probe's maps on the host and copying them back (2 × 5.6 MB a probe at 512²)."""
+    instead of staging every probe's maps on the host and copying them back (2 × 3.5 MB a probe at 512²)."""
     return tuple(s.at[i].set(a) for s, a in zip(stacks, arrays, strict=True))
 
 
