@@ -48,7 +48,12 @@ def add_parser(sub) -> None:
     )
     e.add_argument("--scene", required=True, help="scene name or file (see `probeplace scenes`)")
     add_scene_options(e)
-    e.add_argument("--probes", required=True, help="ProbeSet .json (probeplace place) or baked .npz")
+    e.add_argument(
+        "--probes",
+        required=True,
+        help="ProbeSet .json (probeplace place), baked .npz, or a set exported to an engine file (.glb, "
+        ".gltf, .usda, .usdc, .usd, .lodprobes, probeplace.ProbeExport .json: re-baked as placed there)",
+    )
     e.add_argument("--view", default=None, help="camera name (default: the scene's first view)")
     e.add_argument("--out", default="results/eval", help="output folder (metrics.json is written last)")
     e.add_argument(
@@ -301,13 +306,15 @@ def _checked_outputs(args: argparse.Namespace, path: Path, config) -> None:
 def _checked_inputs(args: argparse.Namespace):
     """Every input checked before the scene is loaded and anything is baked or rendered: (path, config,
     bake config or None, ProbeSet or baked probes)."""
-    from ._core import load_probe_set
     from ._core._checks import check_npz_archive
     from .probes import load_probes
 
     path = Path(args.probes)
-    if path.suffix not in (".json", ".npz"):
-        raise ConfigError(f"--probes must be a ProbeSet .json or a baked .npz, got {path}")
+    if path.suffix not in (".json", ".npz", *EXPORTED_SUFFIXES):
+        raise ConfigError(
+            f"--probes must be a ProbeSet .json, a baked .npz or an exported set "
+            f"({', '.join(EXPORTED_SUFFIXES)}, probeplace.ProbeExport .json), got {path}"
+        )
     config = eval_config(args)  # first: the output's size bound needs a sensible image size
     _checked_outputs(args, path, config)
     if config.backend == "mitsuba":  # refuse before loading anything if its LLVM variant cannot load
@@ -323,11 +330,43 @@ def _checked_inputs(args: argparse.Namespace):
     else:
         bake_cfg = bake_config(args)
         check_count(resolved_options(args)["bake_spp"], "--bake-spp")
-        probes, meta = load_probe_set(path)
+        probes, meta = _placed_probes(path)
         _check_recorded_scene(meta, path, args.scene)
     if not bool(np.asarray(probes.active).any()):
         raise ConfigError(f"--probes: {path} holds no active probes; nothing to bake or evaluate")
     return path, config, bake_cfg, probes
+
+
+#: Files of exported probe sets ``--probes`` reads (``export.read_probes``; issue 36: a set edited in an
+#: engine is scored again). Their positions are in scene units, in probeplace's frame (``export``).
+EXPORTED_SUFFIXES = (".glb", ".gltf", ".usda", ".usdc", ".usd", ".lodprobes")
+
+
+def _placed_probes(path: Path):
+    """(ProbeSet, its document without the arrays) of a ProbeSet .json or of an exported set
+    (``export.read_probes``: glTF, USD, Three.V8, probeplace.ProbeExport JSON), whose method, units and
+    metadata (the scene it was placed in) come along."""
+    import jax.numpy as jnp
+
+    from ._core import ProbeSet, load_probe_set
+    from .export import ExportError, read_probes
+    from .export._data import PROBE_SET_FORMAT
+
+    if path.suffix == ".json":
+        try:
+            tag = json.loads(path.read_text()).get("format")
+        except (OSError, ValueError, AttributeError):
+            tag = None  # load_probe_set names the problem
+        if tag == PROBE_SET_FORMAT or tag is None:
+            return load_probe_set(path)
+    try:
+        exp = read_probes(path)
+    except ExportError as e:
+        raise ConfigError(f"--probes: {e}") from None
+    probes = ProbeSet(
+        pos_world=jnp.asarray(exp.positions, jnp.float32), active=jnp.asarray(exp.active), method=exp.method
+    )
+    return probes, {"method": exp.method, "units_m": exp.units_m, "metadata": exp.metadata}
 
 
 def _scene_key(name_or_path: str) -> str:

@@ -1048,6 +1048,14 @@ CATALOGUE: list[Entry] = [
         r"--probes: .*t\.npz is not a probeplace \.npz: not a NumPy archive",
     ),
     Entry(
+        "cli-eval-cut-glb",
+        "cli",
+        "a cut .glb given as an exported probe set",
+        _cli(*_EVAL, "--probes", "<dir>/p.glb", "--out", "<dir>/ev", files={"p.glb": "glTF\x02\x00\x00\x00"}),
+        ConfigError,
+        r"--probes: .*p\.glb: truncated GLB header",
+    ),
+    Entry(
         "cli-export-empty-set",
         "cli",
         "`export` of a probe set with no probes",
