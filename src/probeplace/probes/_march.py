@@ -148,7 +148,8 @@ def _surfel_test(tr, p, pc: _Piece, ij, t, t_exit):
     # Signed distances from each plane at the cell's ends, positive on the probe's side.
     g0 = jnp.sum(((o + t * d)[None, :] - xs) * n, axis=-1)
     g1 = jnp.sum(((o + t_exit * d)[None, :] - xs) * n, axis=-1)
-    tau = tr.config.thickness * jnp.linalg.norm(xs, axis=-1)
+    r_s = jnp.linalg.norm(xs, axis=-1)  # each surfel's distance from the probe
+    tau = tr.config.thickness * r_s
     deeper = n @ d < 0
     cross_in = (g0 >= 0) & (g1 < 0)
     t_hit = jnp.where(cross_in, t + (t_exit - t) * g0 / jnp.where(cross_in, g0 - g1, 1.0), t)
@@ -156,7 +157,7 @@ def _surfel_test(tr, p, pc: _Piece, ij, t, t_exit):
     # The ray's origin is on the surfel's surface (TraceConfig.start_tol): behind its plane within the
     # thickness, or in front of it by no more than the plane's own error there.
     g_o = jnp.sum((o[None, :] - xs) * n, axis=-1)
-    starts_here = (g_o >= -tau) & (g_o <= tr.config.start_tol * jnp.linalg.norm(xs, axis=-1))
+    starts_here = (g_o >= -tau) & (g_o <= tr.config.start_tol * r_s)
     hit = has & (cross_in | (in_shell & deeper)) & ~starts_here
     # One surface: its own surfel decides. Ambiguous: free only in front of every candidate (bar the
     # surface the ray starts on, unless deep behind it); a hit only where every candidate is met at
@@ -236,7 +237,7 @@ def _march_step(tr, p, pc: _Piece, tb, span, t_min, c):
     The per-ray march (:func:`_trace_segment`) and the wavefront tracer (``_wavefront``) both step with
     it, so they give the same answers."""
     m = tr.march_res
-    offsets = jnp.asarray([0] + [tr.level_offset(k) for k in range(1, tr.n_levels)], jnp.int32)
+    offsets = jnp.asarray([tr.level_offset(k) for k in range(tr.n_levels)], jnp.int32)
     o, d = pc.o, pc.d
     _status, t, steps, texel, level, ij = c
     cells = jnp.right_shift(jnp.int32(m), level)
