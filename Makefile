@@ -34,7 +34,19 @@ $(LLVM_STAMP): $(STAMP)
 	else echo "make: libllvm19 missing (apt-get install libllvm19) - Mitsuba checks use scalar_rgb"; fi
 	@touch $(LLVM_STAMP)
 
-TOOLS := $(STAMP) $(NODE_STAMP) $(LLVM_STAMP)
+# Debian's chromium: the browser tests (report.html, `probeplace view`) open pages in it headless, driven by
+# Playwright (dev extra) with the system browser, never Playwright's own download. Without it those tests
+# skip and say why.
+CHROMIUM_STAMP := $(VENV)/.chromium
+$(CHROMIUM_STAMP): $(STAMP)
+	@if command -v chromium >/dev/null || command -v chromium-browser >/dev/null; then :; \
+	elif [ "$$(id -u)" = 0 ] && command -v apt-get >/dev/null; then \
+	  (apt-get install -y -qq chromium >/dev/null 2>&1 || (apt-get update -qq >/dev/null 2>&1 && apt-get install -y -qq chromium >/dev/null 2>&1)) \
+	  || echo "make: could not install chromium - browser tests will be skipped"; \
+	else echo "make: chromium missing (apt-get install chromium) - browser tests will be skipped"; fi
+	@touch $(CHROMIUM_STAMP)
+
+TOOLS := $(STAMP) $(NODE_STAMP) $(LLVM_STAMP) $(CHROMIUM_STAMP)
 
 # `make demo`: the cornell_comparison preset (the placement methods on the Cornell box at the grid's count,
 # 3 seeds, baked and evaluated; configs/experiment/cornell_comparison.yaml), cornell_own_counts (each
