@@ -6,7 +6,9 @@ Only finished runs (folders with a DONE marker) are read; see probeplace.experim
 runs of a method at one probe count (seeds, scene offsets) are drawn at their geometric mean with a
 95 % t-interval as error bars on log-scale count and memory axes; the tables compare methods at exactly
 equal probe counts and at equal bytes of probe data (a method placing the same probes as another is
-marked "(= other)"); top_views/<run>.png shows each probe set from the top and the side.
+marked "(= other)"); top_views/<run>.png shows each probe set from the top and the side. report.html
+is the same report in one self-contained page, with a 3D view of each method's placement and its
+evaluation images side by side (probeplace.experiment._report_html).
 """
 
 from __future__ import annotations

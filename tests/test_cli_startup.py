@@ -50,8 +50,16 @@ def probe_json(tmp_path):
 
 @pytest.mark.parametrize(
     "argv",
-    [["--version"], ["--help"], ["scenes"], ["cache", "info"], ["export", "--help"], ["-q", "cache", "info"]],
-    ids=["version", "help", "scenes", "cache-info", "export-help", "quiet-cache-info"],
+    [
+        ["--version"],
+        ["--help"],
+        ["scenes"],
+        ["cache", "info"],
+        ["export", "--help"],
+        ["-q", "cache", "info"],
+        ["view", "--help"],
+    ],
+    ids=["version", "help", "scenes", "cache-info", "export-help", "quiet-cache-info", "view-help"],
 )
 def test_commands_that_need_no_jax_import_none(argv):
     rc, leaked, out = _jax_modules_after(argv)

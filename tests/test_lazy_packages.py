@@ -14,7 +14,7 @@ import pytest
 SCENE_NAMES = """build_scene crease_normals make_camera make_materials make_sun cornell_box courtyard
 KNOWN_SCENES SCENE_EXTENSIONS SCENE_PATH_ENV SceneEntry find_scene_file list_scenes load_scene
 load_scene_file looks_like_path scene_config_layers scene_search_path derived_views BUILTIN_SCENES
-PreviewMesh preview_mesh
+PreviewMesh preview_mesh srgb8
 ROOMS_DARK_ROOM_BOUNDS ROOMS_LIT_ROOM_BOUNDS ROOMS_WALL_THICKNESS rooms SIDECAR_SUFFIX CameraSpec
 EmitterSpec MaterialSpec SceneConfig SunSpec merge_scene_configs no_light_hint parse_scene_config
 read_sidecar sidecar_path apply_scene_config add_scene_options parse_camera parse_sky parse_sun

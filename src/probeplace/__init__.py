@@ -11,7 +11,7 @@ from typing import TYPE_CHECKING
 
 __version__ = "0.1.0"
 __all__ = ["Camera", "Hit", "Materials", "ProbeSet", "Scene", "Sun"]  # all from _core
-_STAGES = ("scene", "geometry", "render", "placement", "probes", "evaluate", "experiment", "export")
+_STAGES = ("scene", "geometry", "render", "placement", "probes", "evaluate", "experiment", "export", "view")
 
 if TYPE_CHECKING:  # what static checkers and IDEs see; __getattr__ gives the same at run time
     from ._core import Camera as Camera

@@ -421,6 +421,7 @@ def build_parser(lazy: bool = True) -> argparse.ArgumentParser:
     _lazy(sub, "place", _PLACE_HELP, _fill_place_parser)
     _lazy(sub, "export", _EXPORT_HELP, _fill_export_parser)
     _lazy(sub, "evaluate", None, _fill_evaluate_parser)  # --- evaluate (issue 4) ---
+    _lazy(sub, "view", _VIEW_HELP, _fill_view_parser)  # --- view (issue 36) ---
     from ._cache_cli import add_parser as _add_cache  # --- cache (issue 32); imports no JAX ---
 
     _add_cache(p, sub)
@@ -460,6 +461,18 @@ def _fill_evaluate_parser(e: _Subcommand) -> None:
 
 
 _PLACE_HELP = "place probes in a scene and write a ProbeSet JSON file + top view"
+_VIEW_HELP = (
+    "a web viewer of a run folder or a probes file: scene, probes, cameras, error image, a probe's maps "
+    "(docs/view.md)"
+)
+
+
+def _fill_view_parser(v: argparse.ArgumentParser) -> None:
+    from .view._cli import add_parser
+
+    add_parser(v)
+
+
 _EXPORT_HELP = "write a probe set to an engine format (docs/export.md)"
 
 

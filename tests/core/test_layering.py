@@ -8,9 +8,10 @@ from pathlib import Path
 import probeplace
 
 # Lowest first. ``export`` sits beside the pipeline: it reads probe files and may import ``_core`` only.
-ORDER = ("_core", "scene", "geometry", "render", "placement", "probes", "evaluate", "experiment")
+ORDER = ("_core", "scene", "geometry", "render", "placement", "probes", "evaluate", "experiment", "view")
 ALLOWED = {stage: set(ORDER[:i]) for i, stage in enumerate(ORDER)}
 ALLOWED["experiment"] |= {"export"}
+ALLOWED["view"] |= {"export"}
 ALLOWED["export"] = {"_core"}
 
 ROOT = Path(probeplace.__file__).parent

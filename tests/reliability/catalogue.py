@@ -1482,4 +1482,50 @@ CATALOGUE += [
     ),
 ]
 
+
+# ------------------------------------------------------------------------- probeplace view (issue 36)
+_VIEW = "probeplace.view._cli.checked_input"
+CATALOGUE += [
+    Entry(
+        "view-missing-path",
+        "cli",
+        "`view` of a path that does not exist",
+        _cli(_VIEW, "view", "<dir>/nowhere"),
+        ProbeplaceError,
+        r"nowhere: no such file or folder; give a run folder \(it holds probes\.json\) or a probes file",
+    ),
+    Entry(
+        "view-not-a-run",
+        "cli",
+        "`view` of a folder that is not a finished run (no `probes.json`)",
+        _cli(_VIEW, "view", "<dir>"),
+        ProbeplaceError,
+        r"not a finished run \(no probes\.json\); give a run folder .* or a probes file with --scene",
+    ),
+    Entry(
+        "view-corrupt-probes",
+        "cli",
+        "`view` of a probes file that is not valid JSON",
+        _cli(_VIEW, "view", "<dir>/p.json", files={"p.json": "{oops"}),
+        ProbeplaceError,
+        r"p\.json: not valid JSON .*the probes file is damaged or not a probe set",
+    ),
+    Entry(
+        "view-no-scene",
+        "cli",
+        "`view` of a probes file that records no scene, without `--scene`",
+        _cli(_VIEW, "view", "<dir>/p.json", files=_ONE_PROBE),
+        ProbeplaceError,
+        r"p\.json: the probes file records no scene; give it with --scene NAME_OR_PATH",
+    ),
+    Entry(
+        "view-unknown-scene",
+        "cli",
+        "`view --scene` naming a scene that is neither built-in nor on the search path",
+        _cli(_VIEW, "view", "<dir>/p.json", "--scene", "no_such_scene", files=_ONE_PROBE),
+        ProbeplaceError,
+        r"--scene: scene 'no_such_scene' is neither built-in nor on the scene search path",
+    ),
+]
+
 assert len({e.id for e in CATALOGUE}) == len(CATALOGUE), "catalogue ids must be unique"

@@ -4,8 +4,11 @@ Reads only finished run folders (``DONE``): ``metrics.json``, ``config.yaml``, `
 ``eval/images.exr``. Writes ``<experiment dir>/report/`` atomically: ``report.md``, ``mse_vs_count.png``,
 ``mse_vs_time.png`` (placement + bake, and shading per frame, Pareto front marked), ``memory_vs_mse.png``,
 ``error_images.png`` (one colour scale), ``top_views/<run>.png`` (a top and a side view of each probe
-set) and, with several seeds or scene offsets, the stability tables. The figures are built in
-``_report_charts``, the statistics and the words for metric keys live in ``_report_data``.
+set) and, with several seeds or scene offsets, the stability tables; then ``report.html``, the same
+report in one self-contained page with a 3D view of each scene's placements and their images
+(``_report_html``). The figures are built in ``_report_charts``, the statistics and the words for metric
+keys live in ``_report_data``. Each scene is loaded once per report (``_report_data.load_scenes``); one
+that cannot be loaded is named in one line where its views would be.
 
 Several runs of one method at one probe count (seeds, scene offsets) are one *cell*: charts draw its
 geometric mean with a 95 % Student-t interval in log space as an error bar, and the tables print the
@@ -53,8 +56,10 @@ from ._report_data import (
     compile_s,
     count_cells,
     full_coverage,
+    grid_count,
     group,
     leak_share,
+    load_scenes,
     log_t_interval,
     median_run_s,
     memory,
@@ -70,6 +75,7 @@ from ._report_data import (
     unresolved,
     words,
 )
+from ._report_html import write_report_html
 from ._results import iter_runs
 
 __all__ = ["load_runs", "make_report", "pareto_front", "seed_paired_ratio"]
@@ -381,14 +387,6 @@ def _equal_quality_table(rs, labels, scene, g_mse: float, twins: dict) -> list[s
     return md
 
 
-def _grid_count(grid: list[dict]) -> int:
-    """The grid's probe count the equal-count table compares at: its measured count nearest (log) to the
-    median of its counts (a count it really ran, so equal counts are exact)."""
-    counts = sorted({r["n_probes"] for r in grid})
-    med = float(np.median([r["n_probes"] for r in grid]))
-    return min(counts, key=lambda c: (abs(math.log(c / med)), c))
-
-
 def _scene_tables(runs: list[dict], labels: list[str], scene: str, twins: dict) -> list[str]:
     """One scene's equal-count, equal-memory, equal-time and equal-quality tables (all but equal memory
     measured against the grid's cell at its count: the geometric mean of its runs there)."""
@@ -401,7 +399,7 @@ def _scene_tables(runs: list[dict], labels: list[str], scene: str, twins: dict) 
             f"_{scene}: equal-count / time / quality tables need evaluated runs including `grid`._",
             *memory_md,
         ]
-    g_count = _grid_count(grid)
+    g_count = grid_count(grid)
     g_cell = [r for r in grid if r["n_probes"] == g_count]
     g_time = median_run_s(g_cell)
     g_time = math.nan if g_time is None else g_time
@@ -492,26 +490,26 @@ def _stability(runs: list[dict], labels: list[str]) -> list[str]:
     return md
 
 
-def _top_views(runs: list[dict], out: Path) -> list[Path]:
+def _top_views(runs: list[dict], out: Path, scenes: dict) -> tuple[list[Path], list[str]]:
     """``top_views/<run>.png`` per run (the folder keeps its earlier name): its probes (``probes.json``)
-    in a top and a side view over its scene (``config.yaml``), so probes stacked in height, one dot from
-    above, stand apart from the side."""
+    in a top and a side view over its scene (``scenes``: :func:`load_scenes`), so probes stacked in
+    height, one dot from above, stand apart from the side. Returns the paths and, for runs whose scene
+    could not be loaded, the reasons (one line each, once per reason)."""
     from .._core import load_probe_set
-    from ._run import load_experiment_scene
-    from ._schema import load_config_yaml, to_config
 
-    paths, tris = [], {}
+    paths, missing, tris = [], [], {}
     for r in runs:
-        cfg = to_config(load_config_yaml(r["dir"] / "config.yaml"))
-        key = (cfg.scene.name, tuple(cfg.scene.translate_frac), cfg.scene.rotate_deg)
-        if key not in tris:
-            scene = load_experiment_scene(cfg.scene)
-            tris[key] = np.asarray(scene.vertices)[np.asarray(scene.faces)]
+        scene = scenes[r["run"]]
+        if isinstance(scene, str):
+            missing += [] if scene in missing else [scene]
+            continue
+        if id(scene) not in tris:
+            tris[id(scene)] = np.asarray(scene.vertices)[np.asarray(scene.faces)]
         probes, _ = load_probe_set(r["dir"] / "probes.json")
         pos = np.asarray(probes.pos_world)[np.asarray(probes.active)]
-        fig = fig_probe_views(tris[key], pos, f"{r['label']}: {len(pos)} probes · seed {r['seed']}")
+        fig = fig_probe_views(tris[id(scene)], pos, f"{r['label']}: {len(pos)} probes · seed {r['seed']}")
         paths.append(save_figure(fig, out / "top_views" / f"{r['run']}.png", dpi=80))
-    return paths
+    return paths, missing
 
 
 CHARTS = (  # (file stem, section title)
@@ -522,8 +520,9 @@ CHARTS = (  # (file stem, section title)
 )
 
 
-def _report_md(exp: Path, runs: list[dict], out: Path) -> list[str]:
-    """Draw every figure into ``out`` and return the report's Markdown lines."""
+def _report_md(exp: Path, runs: list[dict], out: Path, scenes: dict) -> tuple[list[str], list[str]]:
+    """Draw every figure into ``out`` and return the report's Markdown lines: the title and its line, then
+    the rest (report.html puts its 3D views and images between the two)."""
     labels = _labels(runs)
     col = colours(labels)
     figs = [
@@ -532,31 +531,35 @@ def _report_md(exp: Path, runs: list[dict], out: Path) -> list[str]:
         fig_memory(runs, labels, col),
         fig_errors(runs),
     ]
-    md = [
+    head = [
         f"# {exp.name}",
         "",
         f"{len(runs)} finished runs in `{exp}`; every figure below is redrawn from them.",
         "",
     ]
+    md = []
     for (stem, title), fig in zip(CHARTS, figs, strict=True):
         if fig is None:
             md += [f"## {title}", "", "_no evaluated runs: nothing to draw_", ""]
             continue
         save_figure(fig, out / f"{stem}.png", dpi=100 if stem == "error_images" else 110)
         md += [f"## {title}", "", f"![{title}]({stem}.png)", ""]
-    views = _top_views(runs, out)
+    views, missing = _top_views(runs, out, scenes)
     md += ["## Probe layouts (top and side views)", ""]
+    md += [f"_{why}_" for why in missing] + ([""] if missing else [])
     md += [" ".join(f"![{p.stem}](top_views/{p.name})" for p in views), ""]
     md += _tables(runs, labels)
     md += ["", *_stability(runs, labels)]
     if (stab := fig_stability(runs, labels, col)) is not None:
         save_figure(stab, out / "stability.png")
         md += ["", "![Uncovered surface per run](stability.png)", ""]
-    return md
+    return head, md
 
 
 def make_report(exp_dir: str | os.PathLike) -> Path:
-    """Write ``<exp_dir>/report/`` (report.md + PNG charts) from the finished runs; returns report.md.
+    """Write ``<exp_dir>/report/`` (report.md, its PNG charts and report.html, the same report in one
+    self-contained page with images and 3D views: ``_report_html``) from the finished runs; returns
+    report.md.
 
     Raises:
         ProbeplaceError: no finished run under ``exp_dir``.
@@ -572,8 +575,10 @@ def make_report(exp_dir: str | os.PathLike) -> Path:
     shutil.rmtree(partial, ignore_errors=True)
     partial.mkdir(parents=True)
     try:
-        md = _report_md(exp, runs, partial)
-        (partial / "report.md").write_text("\n".join(md) + "\n")
+        scenes = load_scenes(runs)
+        head, body = _report_md(exp, runs, partial, scenes)
+        (partial / "report.md").write_text("\n".join(head + body) + "\n")
+        write_report_html(partial, runs, _labels(runs), head, body, scenes)
     except BaseException:
         shutil.rmtree(partial, ignore_errors=True)
         raise

@@ -13,10 +13,12 @@ written once here and used by both the charts (``_report_charts``) and the table
 
 A run's failures and its coverage verdict are the runner's (``_run.failures``, ``placement.reaches_target``),
 re-judged on every record by :func:`run_failures` so that older runs follow the current criteria.
+:func:`load_scenes` gives each run's scene, loaded once per report (or why it could not be).
 """
 
 from __future__ import annotations
 
+import json
 import math
 from collections import defaultdict
 from collections.abc import Callable
@@ -214,6 +216,15 @@ def count_cells(rs: list[dict]) -> dict:
     return out
 
 
+def grid_count(grid: list[dict]) -> int:
+    """The grid's probe count the report compares at (its equal-count table, report.html's images): its
+    measured count nearest (log) to the median of its counts (a count it really ran, so equal counts are
+    exact)."""
+    counts = sorted({r["n_probes"] for r in grid})
+    med = float(np.median([r["n_probes"] for r in grid]))
+    return min(counts, key=lambda c: (abs(math.log(c / med)), c))
+
+
 def _placement_key(r: dict) -> tuple:
     """Runs that could share a placement: same scene, pose, seed and probe count."""
     return (r["scene"], tuple(r.get("translate_frac") or ()), r.get("rotate_deg"), r["seed"], r["n_probes"])
@@ -277,3 +288,24 @@ def pose(r: dict) -> str:
     return {(False, False): "base", (True, False): "translated", (False, True): "rotated"}.get(
         (moved, turned), "translated+rotated"
     )
+
+
+def load_scenes(runs: list[dict]) -> dict:
+    """run name → its scene (``config.yaml``: name, sidecar, overrides, pose), each distinct scene loaded
+    once per report; a scene that cannot be loaded (an external file missing from the search path) maps
+    to the one-line reason instead, so the report is still written and says why a view is missing."""
+    from ._run import load_experiment_scene
+    from ._schema import config_to_dict, load_config_yaml, to_config
+
+    by_key, out = {}, {}
+    for r in runs:
+        cfg = to_config(load_config_yaml(r["dir"] / "config.yaml"))
+        key = json.dumps(config_to_dict(cfg)["scene"], sort_keys=True)
+        if key not in by_key:
+            try:
+                by_key[key] = load_experiment_scene(cfg.scene)
+            except Exception as e:  # any loader failure: the report describes it rather than stopping
+                first = (str(e).splitlines() or [type(e).__name__])[0]
+                by_key[key] = f"scene {cfg.scene.name!r} could not be loaded: {first}"
+        out[r["run"]] = by_key[key]
+    return out

@@ -21,6 +21,8 @@ from ._gltf import write_gltf as write_gltf
 from ._json import read_json as read_json
 from ._json import schema as schema
 from ._json import write_json as write_json
+from ._octa import oct_decode as oct_decode  # NumPy octahedral helpers (``probeplace view``)
+from ._octa import texel_solid_angles as texel_solid_angles
 from ._registry import FORMATS as FORMATS
 from ._registry import export_probes as export_probes
 from ._registry import import_probes as import_probes

@@ -46,7 +46,7 @@ _LAZY = {
     "courtyard": "_courtyard",
     **dict.fromkeys(("load_scene", "load_scene_file", "scene_config_layers"), "_load"),
     "derived_views": "_raw",
-    **dict.fromkeys(("PreviewMesh", "preview_mesh"), "_preview"),
+    **dict.fromkeys(("PreviewMesh", "preview_mesh", "srgb8"), "_preview"),
     **dict.fromkeys(
         ("ROOMS_DARK_ROOM_BOUNDS", "ROOMS_LIT_ROOM_BOUNDS", "ROOMS_WALL_THICKNESS", "rooms"), "_rooms"
     ),
@@ -100,6 +100,7 @@ if TYPE_CHECKING:  # what static checkers and IDEs see; __getattr__ gives the sa
     from ._load import scene_config_layers as scene_config_layers
     from ._preview import PreviewMesh as PreviewMesh
     from ._preview import preview_mesh as preview_mesh
+    from ._preview import srgb8 as srgb8
     from ._raw import derived_views as derived_views
     from ._rooms import ROOMS_DARK_ROOM_BOUNDS as ROOMS_DARK_ROOM_BOUNDS
     from ._rooms import ROOMS_LIT_ROOM_BOUNDS as ROOMS_LIT_ROOM_BOUNDS

@@ -19,7 +19,7 @@ class PreviewMesh:
     face_rgb: np.ndarray
 
 
-def _srgb8(linear: np.ndarray) -> np.ndarray:
+def srgb8(linear: np.ndarray) -> np.ndarray:
     """Linear [0, 1] → 8-bit sRGB (IEC 61966-2-1), the colour a display shows for an albedo."""
     a = np.clip(np.asarray(linear, np.float64), 0.0, 1.0)
     s = np.where(a <= 0.0031308, 12.92 * a, 1.055 * np.power(a, 1 / 2.4) - 0.055)
@@ -37,5 +37,5 @@ def preview_mesh(scene) -> PreviewMesh:
     return PreviewMesh(
         vertices=np.asarray(scene.vertices, np.float32),
         faces=np.asarray(scene.faces, np.int32),
-        face_rgb=_srgb8(colour)[np.asarray(scene.tri_material)],
+        face_rgb=srgb8(colour)[np.asarray(scene.tri_material)],
     )
