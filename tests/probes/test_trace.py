@@ -24,6 +24,7 @@ from probeplace.probes._trace import (
     RAY_MISS,
     RAY_UNRESOLVED,
     TraceConfig,
+    _seeing_probe,
     make_tracer,
     trace_light_field,
     trace_probe,
@@ -605,8 +606,33 @@ def test_a_ray_leaving_the_floor_hits_the_pillar_beside_it(pillar):
         assert np.all(at_face[status == HIT]) and np.all((status == HIT) | (status == 2))
         return np.mean(status == HIT)
 
-    assert trace(TraceConfig()) > 0.75  # 0.83 measured
-    assert trace(TraceConfig(start_tol=0.03)) == 0.0  # the shell both sides: the face is never met
+    assert trace(TraceConfig(thickness=0.03)) > 0.75  # 0.83 measured
+    # the shell both sides: the face is never met
+    assert trace(TraceConfig(thickness=0.03, start_tol=0.03)) == 0.0
+
+
+@pytest.mark.parametrize(
+    "z, z_back, picked, picked_off",
+    [
+        (0.05, 0.10, True, True),  # x in front of the floor: seen either way
+        (-0.01, 0.05, True, False),  # x on the floor (1 cm behind its plane), the way in free: taken up
+        (-0.01, -0.02, False, False),  # the ray came through the floor: the point before is behind it too
+        (-0.20, 0.05, False, False),  # x deep behind the floor, beyond the thickness (1.5 % of 1.3 m)
+    ],
+)
+def test_fallback_takes_up_a_ray_stalled_on_a_surface(pillar, z, z_back, picked, picked_off):
+    """``TraceConfig.surface_lookback``: the fallback search may hand a ray whose last free point x lies on
+    a surface the probe sees — behind the surfel's plane within the thickness — to that probe, if the
+    probe sees the ray's earlier point (``x_back``) free; with it off only a point strictly in front
+    counts. Oracle: the floor plane z = 0 (x 1.3 m below-right of the probe, which sees the floor there
+    head-on; thickness 1.5 % of that: 2 cm)."""
+    scene, lf = pillar
+    visited = -jnp.ones(TraceConfig().max_probes, jnp.int32)
+    x = jnp.asarray([-0.3, -0.42, z], jnp.float32)
+    x_back = jnp.asarray([-0.3, -0.42, z_back], jnp.float32)
+    for cfg, want in ((TraceConfig(), picked), (TraceConfig(surface_lookback=None), picked_off)):
+        tr = make_tracer(lf, scene.bounds, config=cfg)
+        assert int(_seeing_probe(tr, x, x_back, visited)) == (0 if want else -1), cfg.surface_lookback
 
 
 def test_edge_on_rule_only_withdraws_hits(room):

@@ -42,7 +42,9 @@ from urllib.parse import unquote
 #: ray meets, which moves glossy estimates (issue 33).
 #: 3 (2026-12-04): a ray starts on a surfel's surface only within ``TraceConfig.start_tol`` in front of
 #: its plane (was the thickness): rays leaving a surface next to another hit it (issue 33).
-RESULTS_VERSION = 3
+#: 4 (2026-12-05): the tracer's fallback takes up rays stalled on a surface (``TraceConfig.surface_lookback``)
+#: and its surface shell is half as thick (``TraceConfig.thickness`` 1.5 %): glossy estimates move (issue 33).
+RESULTS_VERSION = 4
 
 #: Input keys recorded but not compared (flattened, as the refusal names them).
 NOT_COMPARED = ("scene.path",)

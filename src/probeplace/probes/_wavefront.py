@@ -67,6 +67,7 @@ from ._trace import (
     LightFieldTracer,
     TraceResult,
     _after_probe,
+    _lookback,
     _pick,
     _pick_index,
     _ray_result,
@@ -200,7 +201,8 @@ def _fallback_search(tr: LightFieldTracer, lanes: _Lanes, select, block_fb: int)
         picked = (lanes.x, lanes.p_idx, lanes.from_index)
         x, p_idx, from_index = _take(picked, idx)
         origin, direction, t_end, rs = _take((lanes.origin, lanes.direction, lanes.t_end, lanes.rs), idx)
-        p_fb = jax.vmap(lambda x, v: _seeing_probe(tr, x, v))(x, rs.visited)
+        x_back = jax.vmap(lambda o, d, t: _lookback(tr, o, d, t))(origin, direction, rs.t)
+        p_fb = jax.vmap(lambda x, xb, v: _seeing_probe(tr, x, xb, v))(x, x_back, rs.visited)
         return _choose(tr, origin, direction, t_end, rs, p_idx, from_index, p_fb)
 
     keys_fb = ("p", "found", "from_fb", "o", "bounds", "k")
