@@ -15,6 +15,7 @@ from jaxtyping import Array, Float
 from PIL import Image
 
 from .._core import read_exr, write_exr
+from ..scene import srgb8
 from ._render import RenderResult
 
 
@@ -56,9 +57,7 @@ def tonemap(rgb: Float[Array, "h w 3"] | np.ndarray, exposure: float = 0.0) -> n
     """Linear radiance → 8-bit sRGB: scale by 2^exposure, clip to [0, 1], sRGB transfer function
     (IEC 61966-2-1), round. NaN and negative values map to 0."""
     a = np.nan_to_num(np.asarray(rgb, np.float64), nan=0.0, posinf=1.0, neginf=0.0) * 2.0**exposure
-    a = np.clip(a, 0.0, 1.0)
-    srgb = np.where(a <= 0.0031308, 12.92 * a, 1.055 * np.power(a, 1 / 2.4) - 0.055)
-    return np.round(srgb * 255.0).astype(np.uint8)
+    return srgb8(a)
 
 
 def save_png(path: str | Path, rgb: Float[Array, "h w 3"] | np.ndarray, exposure: float = 0.0) -> Path:

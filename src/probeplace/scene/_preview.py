@@ -20,7 +20,8 @@ class PreviewMesh:
 
 
 def srgb8(linear: np.ndarray) -> np.ndarray:
-    """Linear [0, 1] → 8-bit sRGB (IEC 61966-2-1), the colour a display shows for an albedo."""
+    """Linear [0, 1] → 8-bit sRGB (IEC 61966-2-1), the colour a display shows for an albedo (clipped to
+    [0, 1] first; also ``render.tonemap``'s last step)."""
     a = np.clip(np.asarray(linear, np.float64), 0.0, 1.0)
     s = np.where(a <= 0.0031308, 12.92 * a, 1.055 * np.power(a, 1 / 2.4) - 0.055)
     return np.round(s * 255.0).astype(np.uint8)
