@@ -58,12 +58,15 @@ def test_radiance_exposure_and_irradiance_ball(model):
     # rel 1e-3: the SH projection of a 16² map is a midpoint sum (export.project_radiance); E/π of a
     # constant 0.3 comes back within 4e-4 of it (2e-2 at 4²: why the fixture's maps are 16²)
     assert b.white == pytest.approx(0.3) and b.irradiance_white == pytest.approx(0.3, rel=1e-3)
-    from probeplace.view._maps import fibonacci_sphere, irradiance_colours, radiance_image
+    from probeplace.placement import fibonacci_directions
+    from probeplace.view._maps import irradiance_colours, radiance_image
 
     img = radiance_image(b.radiance[0], b.white)
     assert img.shape == (fx.RADIANCE_RES, fx.RADIANCE_RES, 3)
     np.testing.assert_array_equal(img, srgb8(np.full(img.shape, 0.1 / 0.3)))
-    ball = irradiance_colours(b.sh[0], fibonacci_sphere(64), b.irradiance_white).astype(int)
+    ball = irradiance_colours(
+        b.sh[0], fibonacci_directions(64).astype(np.float64), b.irradiance_white
+    ).astype(int)
     # 1 level: the rounding of that 4e-4 relative error
     np.testing.assert_allclose(ball, srgb8(np.full(ball.shape, 0.1 / 0.3)), atol=1)
 

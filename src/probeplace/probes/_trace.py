@@ -670,14 +670,19 @@ def make_tracer(
 
 
 # ------------------------------------------------------------------------------------- many probes
-def _sees(
-    tr: LightFieldTracer, probes: Int[Array, " k"], x: Float[Array, "3"], on_surface: bool = False
-) -> Bool[Array, " k"]:
+def _sees(tr: LightFieldTracer, probes: Int[Array, " k"], x: Float[Array, "3"]) -> Bool[Array, " k"]:
     """Whether each (usable) probe sees x: x lies in front of the surfel of the march cell in x's
     direction — of every candidate surfel if the cell is ambiguous — by ``fallback_margin`` of its
-    distance (the tracer's own "free" test at one point). ``on_surface``: or behind them within the
-    thickness (x on the surface the probe sees: ``TraceConfig.surface_lookback``)."""
-    margin = -tr.config.thickness if on_surface else tr.config.fallback_margin
+    distance (the tracer's own "free" test at one point)."""
+    return _sees_within(tr, probes, x, (tr.config.fallback_margin,))[0]
+
+
+def _sees_within(
+    tr: LightFieldTracer, probes: Int[Array, " k"], x: Float[Array, "3"], margins: tuple[float, ...]
+) -> Bool[Array, "n_margins k"]:
+    """:func:`_sees` at each of ``margins`` (fractions of the surfels' distance x must lie in front by; a
+    negative one lets x lie behind within it: ``-thickness`` is "on the surface the probe sees",
+    ``TraceConfig.surface_lookback``), reading the candidate surfels once for all of them."""
     q = jnp.maximum(probes, 0)
     rel = x[None, :] - tr.pos_world[q]
     r = jnp.linalg.norm(rel, axis=-1)
@@ -690,11 +695,12 @@ def _sees(
         w = tr.row[p]
         xs, n, has = tr.surfels(w, rows, cols)
         g = jnp.sum((rel[None, :] - xs) * n, axis=-1)
-        front = ~has | (g > margin * jnp.linalg.norm(xs, axis=-1))
+        r_s = jnp.linalg.norm(xs, axis=-1)
         # one surface: in front of its own plane and its concave-crease partners' (``_march._partners``)
-        return jnp.all(front | ~jnp.where(tr.is_ambiguous(w, ij[0], ij[1]), True, _partners(tr, xs, n, has)))
+        bounding = jnp.where(tr.is_ambiguous(w, ij[0], ij[1]), True, _partners(tr, xs, n, has))
+        return jnp.stack([jnp.all(~has | (g > margin * r_s) | ~bounding) for margin in margins])
 
-    return (probes >= 0) & tr.usable[q] & jax.vmap(one)(q, ij, rel)
+    return ((probes >= 0) & tr.usable[q])[None, :] & jax.vmap(one)(q, ij, rel).T
 
 
 def _index_probe(tr, origin, direction, x, visited, prev_probe, prev_cell, prev_slot):
@@ -751,9 +757,11 @@ def _seeing_probe(tr: LightFieldTracer, x: Float[Array, "3"], x_back, visited) -
     r2 = jnp.sum((tr.pos_world[q] - x[None, :]) ** 2, axis=-1)
     ok = (pool >= 0) & ~jnp.any(pool[:, None] == visited[None, :], axis=1)
     ok = ok & (r2 <= (tr.config.fallback_radius * tr.spacing) ** 2)
-    sees = _sees(tr, pool, x)
-    if tr.config.surface_lookback is not None:
-        sees = sees | (_sees(tr, pool, x, on_surface=True) & _sees(tr, pool, x_back))
+    if tr.config.surface_lookback is None:
+        sees = _sees(tr, pool, x)
+    else:
+        seen, on_surface = _sees_within(tr, pool, x, (tr.config.fallback_margin, -tr.config.thickness))
+        sees = seen | (on_surface & _sees(tr, pool, x_back))
     sees = ok & sees
     k = jnp.argmin(jnp.where(sees, r2, jnp.inf)).astype(jnp.int32)
     return jnp.where(sees[k], pool[k], -1).astype(jnp.int32)

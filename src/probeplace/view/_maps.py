@@ -107,15 +107,6 @@ def normal_image(normal: np.ndarray, distance: np.ndarray, far: float) -> np.nda
     return rgb
 
 
-def fibonacci_sphere(n: int) -> np.ndarray:
-    """(n, 3) unit directions spread evenly over the sphere (golden-angle spiral)."""
-    i = np.arange(n, dtype=np.float64) + 0.5
-    y = 1.0 - 2.0 * i / n
-    r = np.sqrt(np.maximum(0.0, 1.0 - y * y))
-    phi = math.pi * (3.0 - math.sqrt(5.0)) * i
-    return np.stack([r * np.cos(phi), y, r * np.sin(phi)], axis=-1)
-
-
 def irradiance_colours(sh: np.ndarray, normals: np.ndarray, white: float) -> np.ndarray:
     """(K, 3) uint8 sRGB of a white Lambertian sphere lit by the probe: E(n) / π, from the probe's SH L2
     radiance (``export.sh_irradiance``, Ramamoorthi & Hanrahan 2001), ``white`` mapped to 1."""

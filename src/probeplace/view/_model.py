@@ -15,7 +15,7 @@ import numpy as np
 
 from ..export import read_light_field_npz, sh_irradiance, texel_solid_angles
 from ._input import ViewInput
-from ._maps import exposure_white, fibonacci_sphere
+from ._maps import exposure_white
 
 #: Probe status codes, their legend and colours (saturated cyan / magenta / grey: hues no scene material
 #: of the built-ins has, so a probe stands out against the walls; the browser test looks for them).
@@ -66,6 +66,7 @@ class Baked:
         rows: (n,) the archive row of each shown probe.
         radiance: (n, R+2, R+2, 3) light each probe sees (reflected + emitted), bordered.
         sh: (n, 9, 3) SH L2 of that light (``export.read_light_field_npz``, ``sh_source="total"``).
+        inside: (n,) the bake's inside-geometry flags of the shown probes, or None (not recorded).
         reach: (n,) mean visible distance: the moments map's E[r] averaged over the sphere (solid-angle
             weighted), escaping directions counted at the scene's diagonal.
         far: the distance the bake stores for escaping rays.
@@ -79,6 +80,7 @@ class Baked:
     rows: np.ndarray
     radiance: np.ndarray
     sh: np.ndarray
+    inside: np.ndarray | None
     reach: np.ndarray
     far: float
     white: float
@@ -153,10 +155,8 @@ def load_view_model(inp: ViewInput) -> ViewModel:
     positions = probes.positions[rows]
     baked, baked_note = _baked(inp, positions, rows, float(np.linalg.norm(hi - lo)))
     status = np.where(probes.active[rows], USABLE, INACTIVE).astype(np.int8)
-    if baked is not None:
-        inside = read_light_field_npz(baked.path).inside
-        if inside is not None:
-            status[(status == USABLE) & inside[baked.rows]] = INSIDE
+    if baked is not None and baked.inside is not None:
+        status[(status == USABLE) & baked.inside] = INSIDE
     ev, eval_note = _eval_images(inp)
     meta = inp.metadata
     return ViewModel(
@@ -196,7 +196,8 @@ def _baked(inp: ViewInput, positions: np.ndarray, rows: np.ndarray, diagonal: fl
     if inp.baked_path is None:
         where = "a run folder that baked" if inp.run_config is None else "this run (bake.enabled was off?)"
         return None, f"no baked maps: probes_baked.npz comes with {where}"
-    lf = read_light_field_npz(inp.baked_path)
+    # A bare .npz was read whole by resolve_input already; a baked file is mostly maps: read it once.
+    lf = inp.probes if inp.baked_path == inp.probes_path else read_light_field_npz(inp.baked_path)
     if inp.path.suffix != ".npz":  # a run: probes.json and the bake must hold the same probes, in order
         n = len(positions)
         same = lf.n >= n and np.allclose(lf.positions[:n], positions, rtol=0, atol=1e-5 * diagonal)
@@ -209,13 +210,16 @@ def _baked(inp: ViewInput, positions: np.ndarray, rows: np.ndarray, diagonal: fl
     usable = lf.active[rows] & (~lf.inside[rows] if lf.inside is not None else True)
     white = exposure_white(interior_all(maps.radiance[rows][usable]))
     sh = lf.sh[rows]
-    irradiance = sh_irradiance(sh[usable], fibonacci_sphere(256)) / np.pi
+    from ..placement import fibonacci_directions  # imports JAX, as the scene already has
+
+    irradiance = sh_irradiance(sh[usable], fibonacci_directions(256).astype(np.float64)) / np.pi
     irr_white = exposure_white(irradiance)
     baked = Baked(
         path=inp.baked_path,
         rows=rows,
         radiance=maps.radiance[rows] + maps.emission[rows],
         sh=sh,
+        inside=None if lf.inside is None else np.asarray(lf.inside[rows], bool),
         reach=_reach(maps.moments[rows], maps.far, diagonal),
         far=maps.far,
         white=white,

@@ -17,7 +17,6 @@ import numpy as np
 
 from ._maps import (
     distance_image,
-    fibonacci_sphere,
     irradiance_colours,
     normal_image,
     radiance_image,
@@ -156,7 +155,9 @@ class Viewer:
                 "irradiance E(n)/π (a white Lambertian ball lit by the probe)."
             )
             g["selected"].content = "\n\n".join(lines)
-            dirs = fibonacci_sphere(SPHERE_POINTS)
+            from ..placement import fibonacci_directions  # imports JAX: not at `probeplace view --help`
+
+            dirs = fibonacci_directions(SPHERE_POINTS).astype(np.float64)
             r = SPHERE_RADII * float(self.radii()[i])
             self.server.scene.add_point_cloud(
                 "/selected/irradiance",
