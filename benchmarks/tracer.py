@@ -50,8 +50,14 @@ sys.path.insert(0, str(Path(__file__).resolve().parent))
 from _common import env_info, setup_scene_path, write_result
 from probeplace._core import ProbeSet, scene_box
 from probeplace.geometry import EmbreeCaster
-from probeplace.probes import BakeConfig, bake_probes
-from probeplace.probes._trace import RAY_UNRESOLVED, TraceConfig, make_tracer, trace_light_field
+from probeplace.probes import (
+    BakeConfig,
+    TraceConfig,
+    TraceStatus,
+    bake_probes,
+    make_tracer,
+    trace_light_field,
+)
 from probeplace.probes._wavefront import trace_wavefront
 
 
@@ -120,7 +126,7 @@ def bench_scene(scene, dims, res, n_rays, repeats, seed=0):
         out[f"{h}_compile_s"] = time.perf_counter() - t0
         res_ = jax.block_until_ready(compiled(tr, o, d))
         steps[h] = float(np.mean(np.asarray(res_.steps)))
-        out[f"{h}_unresolved_share"] = float(np.mean(np.asarray(res_.status) == RAY_UNRESOLVED))
+        out[f"{h}_unresolved_share"] = float(np.mean(np.asarray(res_.status) == TraceStatus.UNRESOLVED))
         out[f"{h}_mean_probes_tried"] = float(np.mean(np.asarray(res_.probes_tried)))
         if h == "hiz":
             lf_fn = lambda c=compiled, tr=tr: c(tr, o, d)

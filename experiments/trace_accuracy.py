@@ -74,14 +74,14 @@ def grid_probes(scene, caster, dims, res: int):
 
 
 def score(out, t_ref: np.ndarray, rtol: float, texel_ok: np.ndarray | None = None) -> dict:
-    from probeplace.probes._trace import RAY_HIT, RAY_MISS, RAY_UNRESOLVED
+    from probeplace.probes import TraceStatus
 
     st, t = np.asarray(out.status), np.asarray(out.t, np.float64)
     ref_hit = np.isfinite(t_ref)
-    resolved = st != RAY_UNRESOLVED
-    hit = st == RAY_HIT
+    resolved = st != TraceStatus.UNRESOLVED
+    hit = st == TraceStatus.HIT
     close = hit & ref_hit & (np.abs(t - t_ref) <= rtol * np.where(ref_hit, t_ref, 0.0))
-    agree = close | ((st == RAY_MISS) & ~ref_hit)
+    agree = close | ((st == TraceStatus.MISS) & ~ref_hit)
     early = hit & ref_hit & (t < t_ref * (1 - rtol))
     late = hit & ~close & ~early
     n_res = max(int(resolved.sum()), 1)
@@ -91,7 +91,7 @@ def score(out, t_ref: np.ndarray, rtol: float, texel_ok: np.ndarray | None = Non
         "agree": float(agree[resolved].sum() / n_res),
         "hit_early": float(early.sum() / n_res),
         "hit_late": float(late.sum() / n_res),
-        "false_miss": float(((st == RAY_MISS) & ref_hit).sum() / n_res),
+        "false_miss": float(((st == TraceStatus.MISS) & ref_hit).sum() / n_res),
         "steps": float(np.mean(np.asarray(out.steps))),
         "probes_tried": float(np.mean(np.asarray(out.probes_tried))),
     }
@@ -153,7 +153,7 @@ def main(argv=None) -> int:
     args = ap.parse_args(argv)
 
     from probeplace.geometry import EmbreeCaster
-    from probeplace.probes._trace import TraceConfig, make_tracer, trace_light_field
+    from probeplace.probes import TraceConfig, make_tracer, trace_light_field
     from probeplace.scene import load_scene
 
     scene = load_scene(args.scene)

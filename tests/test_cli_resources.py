@@ -137,7 +137,7 @@ def test_full_disk_is_refused_before_any_work(tmp_path, capsys, no_slow_work, mo
     line = refused(_argv(command, tmp_path, out), capsys, "--out", "cannot write", str(out))
     # evaluate knows its output's size (an upper bound from the image size, the runner's by default); the
     # others ask for one block
-    from probeplace._evaluate_cli import runner_defaults
+    from probeplace.cli._evaluate import runner_defaults
     from probeplace.evaluate._write import evaluation_bytes
 
     d = runner_defaults()
@@ -218,7 +218,7 @@ def test_disk_full_while_drawing_the_top_view_names_it(tmp_path, capsys, monkeyp
 def test_memory_limit_variable_takes_sizes_and_refuses_nonsense(monkeypatch, tmp_path, capsys, no_slow_work):
     """$PROBEPLACE_MAX_BYTES reads sizes like the budget options (8GiB = 8·2³⁰ bytes); a value that is no
     size is one line naming the variable, not a traceback."""
-    from probeplace._core._errors import memory_limit_bytes
+    from probeplace._core import memory_limit_bytes
 
     monkeypatch.setenv("PROBEPLACE_MAX_BYTES", "8GiB")
     assert memory_limit_bytes() == 8 * 2**30

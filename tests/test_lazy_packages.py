@@ -1,6 +1,7 @@
-"""``probeplace.scene`` and ``probeplace.render`` load their JAX modules on first use (PEP 562), so the
-command-line parsers and ``probeplace scenes`` start without JAX; every name they exported when they
-imported everything eagerly still imports, to the object its private module defines."""
+"""``probeplace.scene``, ``probeplace.render`` and ``probeplace.view`` load their JAX (or viser) modules on
+first use (PEP 562), so the command-line parsers and ``probeplace scenes`` start without JAX; every name
+they exported when they imported everything eagerly still imports, to the object its private module
+defines."""
 
 from __future__ import annotations
 
@@ -17,16 +18,19 @@ load_scene_file looks_like_path scene_config_layers scene_search_path derived_vi
 PreviewMesh preview_mesh srgb8
 ROOMS_DARK_ROOM_BOUNDS ROOMS_LIT_ROOM_BOUNDS ROOMS_WALL_THICKNESS rooms SIDECAR_SUFFIX CameraSpec
 EmitterSpec MaterialSpec SceneConfig SunSpec merge_scene_configs no_light_hint parse_scene_config
-read_sidecar sidecar_path apply_scene_config add_scene_options parse_camera parse_sky parse_sun
-scene_overrides scene_overrides_from_args DAYLIGHT_SKY_RADIANCE DAYLIGHT_SUN_IRRADIANCE sun_direction
-sun_from_irradiance TEMPLE_UNDER_STAIRS_BOX temple axis_angle_rotation transform_scene""".split()
+read_sidecar sidecar_path apply_scene_config parse_camera parse_sky parse_sun
+scene_overrides DAYLIGHT_SKY_RADIANCE DAYLIGHT_SUN_IRRADIANCE sun_direction
+sun_from_irradiance TEMPLE_UNDER_STAIRS_BOX temple axis_angle_rotation transform_scene
+scene_layers camera_origin scene_summary read_gltf_json""".split()
 RENDER_NAMES = """ALPHA_MIN BrdfParams BrdfSample brdf_params eval_brdf ggx_d lobe_probability pdf_brdf
 sample_brdf sample_ggx_vndf schlick_fresnel smith_g1 camera_basis camera_ray camera_rays load_exr save_exr
 save_png save_render tonemap COMPONENTS LightSample LightTable light_table sample_light
 best_mitsuba_variant mitsuba_scene_dict BACKEND_CHOICES BACKENDS RayRadiance RenderConfig RenderResult
 default_caster render resolve_backend trace_rays N_UNIFORMS make_frame path_uniforms power_heuristic
-seed_from_key to_local to_world""".split()
-PACKAGES = {"probeplace.scene": SCENE_NAMES, "probeplace.render": RENDER_NAMES}
+seed_from_key to_local to_world load_mitsuba RAY_EPS sample_cosine_hemisphere""".split()
+VIEW_NAMES = """hostname ViewInput check_scene_found resolve_input STATUS_LABELS STATUS_RGB ViewCamera
+ViewModel load_view_model Viewer camera_wxyz pick_probe start_viewer""".split()
+PACKAGES = {"probeplace.scene": SCENE_NAMES, "probeplace.render": RENDER_NAMES, "probeplace.view": VIEW_NAMES}
 
 
 @pytest.mark.parametrize("package", list(PACKAGES))

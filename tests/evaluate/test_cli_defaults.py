@@ -10,8 +10,8 @@ import dataclasses
 
 import pytest
 
-from probeplace._evaluate_cli import bake_config, eval_config, resolved_options
 from probeplace.cli import build_parser, main
+from probeplace.cli._evaluate import bake_config, eval_config, resolved_options
 from probeplace.evaluate import EvalConfig
 from probeplace.experiment import bake_config as runner_bake_config
 from probeplace.experiment import eval_config as runner_eval_config

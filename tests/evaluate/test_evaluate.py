@@ -15,6 +15,7 @@ from __future__ import annotations
 import json
 
 import jax
+import jax.numpy as jnp
 import numpy as np
 import pytest
 
@@ -293,3 +294,59 @@ def test_glossy_mse_approaches_noise_floor_with_fine_probes():
         m = evaluate(scene, lf, view="front", config=config, caster=caster).metrics
         ratios.append(m["mse_glossy_indirect"] / m["noise_floor_glossy_indirect"])
     assert ratios[1] < ratios[0]
+
+
+def test_probe_error_adds_up_on_the_real_run(cornell_eval, tmp_path):
+    """Each probe's share of the error (``_attribute``): per component, the probes' shares and the
+    unattributed rest add up to the MSE in metrics.json; the file holds the baked set's rows."""
+    _, lf, _, result = cornell_eval
+    pe = result.probe_error
+    m = result.metrics
+    n = int(lf.pos_world.shape[0])
+    for key in ("diffuse_indirect", "glossy_indirect", "glossy_indirect_unresolved"):
+        assert pe[key].shape == (n,) and np.all(pe[key] >= 0)
+    d = pe["diffuse_indirect"].sum() + pe["unattributed_diffuse_indirect"]
+    assert d == pytest.approx(m["mse_diffuse_indirect"], rel=1e-9)  # float64 sums of float32 images
+    g = (
+        pe["glossy_indirect"].sum()
+        + pe["unattributed_glossy_indirect_unresolved"]
+        + pe["unattributed_glossy_indirect_miss"]
+        + pe["unattributed_glossy_indirect_other"]
+    )
+    assert g == pytest.approx(m["mse_glossy_indirect"], rel=1e-9)
+    assert pe["unattributed_glossy_indirect_unresolved"] == pytest.approx(
+        pe["glossy_indirect_unresolved"].sum(), rel=1e-12
+    )
+    assert pe["diffuse_indirect"].sum() > 0 and pe["glossy_indirect"].sum() > 0
+    write_evaluation(result, tmp_path / "eval")
+    with np.load(tmp_path / "eval" / "probe_error.npz") as z:
+        np.testing.assert_array_equal(z["diffuse_indirect"], pe["diffuse_indirect"])
+        np.testing.assert_array_equal(z["pos_world"], np.asarray(lf.pos_world))
+        assert str(z["format"]) == "probeplace.ProbeError/1"
+
+
+@pytest.mark.parametrize("method", ["lightfield", "irradiance"])
+def test_irradiance_weights_reproduce_the_shading(cornell_eval, method):
+    """The weights the error is shared by are the shading's: blending each probe's irradiance with
+    ``irradiance_weights`` gives ``shade_irradiance``'s value at random surface-ish points."""
+    from probeplace._core import sample_bilinear
+    from probeplace.probes import irradiance_weights, shade_irradiance
+
+    scene, lf, _, _ = cornell_eval
+    rng = np.random.default_rng(0)
+    lo, hi = np.asarray(scene.bounds[0]), np.asarray(scene.bounds[1])
+    pts = (lo + rng.uniform(0.02, 0.98, (200, 3)) * (hi - lo)).astype(np.float32)
+    nrm = rng.normal(size=(200, 3)).astype(np.float32)
+    nrm /= np.linalg.norm(nrm, axis=1, keepdims=True)
+    pts, nrm = jnp.asarray(pts), jnp.asarray(nrm)
+    e = np.asarray(shade_irradiance(lf, pts, nrm, method=method))
+    ids, w = irradiance_weights(lf, pts, nrm, method=method)
+    assert np.allclose(w.sum(axis=1), 1.0, atol=1e-5)  # float32 normalisation
+    vals = np.asarray(
+        jax.vmap(lambda p, n: jax.vmap(sample_bilinear, (0, None))(lf.irradiance[p], n))(
+            np.maximum(ids, 0), nrm
+        )
+    )
+    blend = np.sum(np.where(ids >= 0, w, 0.0)[..., None] * vals, axis=1)
+    # float32: the shading divides by the weight total once, here each weight is divided first
+    np.testing.assert_allclose(blend, e, rtol=1e-4, atol=1e-6 * float(np.abs(e).max()))

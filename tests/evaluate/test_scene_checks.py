@@ -104,7 +104,7 @@ def test_baked_npz_of_another_scene_is_refused_before_the_caster(tmp_path, capsy
     [("cornell_box", "cornell_box"), ("/data/scenes/room.obj", "room"), ("room", "other/room.obj")],
 )
 def test_the_recorded_scene_matches_by_the_name_it_loads_under(tmp_path, recorded, given):
-    from probeplace._evaluate_cli import _check_recorded_scene
+    from probeplace.cli._evaluate import _check_recorded_scene
 
     _check_recorded_scene({"metadata": {"scene": recorded}}, tmp_path / "p.json", given)  # no error
     _check_recorded_scene({"metadata": {}}, tmp_path / "p.json", given)  # nothing recorded: nothing to check

@@ -229,13 +229,13 @@ def test_scene_offset_moves_the_scene_relative_to_the_grid():
     +Y through its bounding-box centre (a quarter turn swaps the x and z extents, keeps the centre)."""
     import numpy as np
 
-    from probeplace.experiment import SceneConfig, load_experiment_scene
+    from probeplace.experiment import SceneStage, load_experiment_scene
 
-    base = np.asarray(load_experiment_scene(SceneConfig()).bounds, np.float64)
+    base = np.asarray(load_experiment_scene(SceneStage()).bounds, np.float64)
     ext = base[1] - base[0]
-    moved = np.asarray(load_experiment_scene(SceneConfig(translate_frac=[0.1, -0.05, 0.02])).bounds)
+    moved = np.asarray(load_experiment_scene(SceneStage(translate_frac=[0.1, -0.05, 0.02])).bounds)
     np.testing.assert_allclose(moved, base + np.array([0.1, -0.05, 0.02]) * ext, rtol=1e-5, atol=1e-3)
-    turned = np.asarray(load_experiment_scene(SceneConfig(rotate_deg=90.0)).bounds, np.float64)
+    turned = np.asarray(load_experiment_scene(SceneStage(rotate_deg=90.0)).bounds, np.float64)
     np.testing.assert_allclose(turned.mean(0), base.mean(0), atol=1e-3 * ext.max())
     np.testing.assert_allclose((turned[1] - turned[0])[[2, 1, 0]], ext, rtol=1e-5)
 
@@ -288,12 +288,12 @@ def test_trace_engine_reaches_the_evaluation():
 def test_unloadable_mitsuba_is_refused_before_any_work(override, key, tmp_path, monkeypatch):
     """Without Mitsuba's module or LLVM variant (load_mitsuba's ImportError), run() refuses naming the key
     before placing; a disabled stage's backend is not checked."""
-    import probeplace.render._mitsuba_backend as mb
+    import probeplace.render as render
 
     def missing():
         raise ImportError("backend='mitsuba' needs Mitsuba 3 (pip install mitsuba): no module")
 
-    monkeypatch.setattr(mb, "load_mitsuba", missing)
+    monkeypatch.setattr(render, "load_mitsuba", missing)  # the public face the runner reads it from
     with pytest.raises(ConfigError, match=rf"^{re.escape(key)}: backend='mitsuba' needs Mitsuba 3"):
         run({**override, "results_dir": str(tmp_path)})
     assert not [p for p in tmp_path.rglob("*") if p.is_file()]

@@ -62,6 +62,15 @@ def _check_run(cfg, res):
     probes, _ = load_probe_set(d / "probes.json")
     assert probes.n_active == m["n_probes"] <= 2
     assert m["timings"]["place_s"] > 0
+    # each probe's part in the coverage, beside probes.json (the viewer reads it without JAX)
+    with np.load(d / "coverage_detail.npz") as z:
+        assert str(z["format"]) == "probeplace.CoverageDetail/1"
+        assert z["seen"].shape == z["unique"].shape == (m["n_probes"],)
+        assert float(z["coverage"]) == m["coverage"]
+        assert z["unique"].sum() + int(z["n_multiple"]) + len(z["uncovered"]) == int(z["n_coverable"])
+        assert z["uncovered_pos"].shape == (len(z["uncovered"]), 3)
+    meta = json.loads((d / "probes.json").read_text())["metadata"]
+    assert {"relocated_probes", "projected_probes", "filled_probes"} <= set(meta)
     for stage in ("place", "bake", "eval"):
         _check_split(m["timings"], stage, present=stage == "place" or getattr(cfg, stage).enabled)
     if cfg.bake.enabled:
@@ -83,6 +92,9 @@ def _check_run(cfg, res):
         assert ev["width"] == 8 and np.isfinite(ev["mse_glossy_indirect"])
         assert ev["backend"] == cfg.eval.backend
         assert (d / "eval" / "images.exr").is_file()
+        with np.load(d / "eval" / "probe_error.npz") as z:  # each probe's share of the error
+            total = z["diffuse_indirect"].sum() + z["unattributed_diffuse_indirect"]
+            assert total == pytest.approx(ev["mse_diffuse_indirect"], rel=1e-9)
     return m
 
 

@@ -401,13 +401,14 @@ def test_cli_refuses_a_baked_file_of_another_depth(tmp_path, capsys, getkey):
 
 
 def test_cli_checks_backend_and_geometry_res_before_loading(tmp_path, capsys, monkeypatch):
+    import probeplace.render as render
     from probeplace.cli import main
-    from probeplace.render import _mitsuba_backend
 
     def no_llvm():
         raise ImportError("backend='mitsuba': no LLVM here")
 
-    monkeypatch.setattr(_mitsuba_backend, "load_mitsuba", no_llvm)
+    # patched on the public face the command reads it from (a lazy name, cached there once read)
+    monkeypatch.setattr(render, "load_mitsuba", no_llvm)
     probes = tmp_path / "p.json"  # never read: the checks come first
     argv = ["evaluate", "--scene", "no_such_scene", "--probes", str(probes), "--out", str(tmp_path / "ev")]
     assert main([*argv, "--backend", "mitsuba"]) == 2
@@ -544,8 +545,8 @@ def test_experiment_config_has_one_path_depth():
     the evaluation's, and an old config that sets one is refused naming both keys."""
     import dataclasses
 
+    from probeplace.experiment import BakeStage as BakeSchema
     from probeplace.experiment import to_config
-    from probeplace.experiment._schema import BakeConfig as BakeSchema
 
     assert "max_depth" not in {f.name for f in dataclasses.fields(BakeSchema)}
     with pytest.raises(ConfigError, match=r"bake\.max_depth=4: .*tracer\.max_depth − 1"):

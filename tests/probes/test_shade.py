@@ -36,6 +36,7 @@ from probeplace._core import (
 from probeplace.geometry import BruteForceCaster
 from probeplace.probes import (
     BakeConfig,
+    TraceStatus,
     bake_probes,
     diffuse_irradiance,
     glossy_radiance,
@@ -46,9 +47,9 @@ from probeplace.probes import (
     sh_coefficients,
     sh_irradiance,
     shade_irradiance,
+    trace_light_field,
 )
 from probeplace.probes._shade import _chebyshev
-from probeplace.probes._trace import RAY_HIT, RAY_UNRESOLVED, trace_light_field
 from probeplace.scene import build_scene, load_scene, make_materials
 from probeplace.scene._primitives import box
 from tests.geometry.raycast_reference import ray_triangle_t
@@ -241,13 +242,13 @@ def test_glossy_radiance_matches_exact_hit(cornell_position_colour):
     exact = caster.closest_hit(o32, d32)
     xe = np.asarray(o32, np.float64) + np.asarray(exact.t, np.float64)[:, None] * np.asarray(d32, np.float64)
     want = (xe - lo) / (hi - lo)
-    hit = status == RAY_HIT
-    assert np.mean(status == RAY_UNRESOLVED) < 0.05
+    hit = status == TraceStatus.HIT
+    assert np.mean(status == TraceStatus.UNRESOLVED) < 0.05
     # A probe texel averages the colour over its footprint: 4π/64² sr at up to the box diagonal; in
     # normalised colour that is ≲ 0.05 per axis at the far walls. Allow 0.08, 97% of hits (texels that
     # straddle an edge between two surfaces carry a blend).
     err = np.max(np.abs(rad - want), axis=1)
-    resolved = status != RAY_UNRESOLVED
+    resolved = status != TraceStatus.UNRESOLVED
     exact_hit = np.asarray(exact.tri) >= 0  # the box is open toward the camera: misses are real
     assert np.mean(hit[resolved] == exact_hit[resolved]) > 0.97
     assert np.mean(err[hit] < 0.08) > 0.97
@@ -396,7 +397,7 @@ def test_glossy_texel_filter_is_the_resolved_texel(cornell_colour_small):
         pytest.skip("the tracer's maps are not the radiance map's resolution")
     res = trace_light_field(tr, o, d)
     g = glossy_trace(tr, lf, o, d, filter="texel", include_emission=False)
-    hit = np.asarray(res.status) == RAY_HIT
+    hit = np.asarray(res.status) == TraceStatus.HIT
     np.testing.assert_array_equal(np.asarray(g.status), np.asarray(res.status))
     p, tx = np.asarray(res.probe)[hit], np.asarray(res.texel)[hit]
     old = np.asarray(lf.radiance)[p, tx[:, 0] + 1, tx[:, 1] + 1]

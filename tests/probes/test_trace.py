@@ -16,19 +16,17 @@ import pytest
 
 from probeplace._core import ConfigError, ProbeSet, oct_decode, pack_normal, texel_directions
 from probeplace.geometry import BruteForceCaster
-from probeplace.probes import BakeConfig, bake_probes
-from probeplace.probes._index import VoxelIndex
-from probeplace.probes._trace import (
-    HIT,
-    RAY_HIT,
-    RAY_MISS,
-    RAY_UNRESOLVED,
+from probeplace.probes import (
+    BakeConfig,
     TraceConfig,
-    _seeing_probe,
+    TraceStatus,
+    bake_probes,
     make_tracer,
     trace_light_field,
     trace_probe,
 )
+from probeplace.probes._index import VoxelIndex
+from probeplace.probes._trace import _seeing_probe
 from probeplace.scene import build_scene, make_materials
 from probeplace.scene._primitives import box
 
@@ -87,7 +85,7 @@ def test_single_probe_hits_planar_walls_exactly(room, hierarchy):
     status, t = np.asarray(status), np.asarray(t, np.float64)
     exact = _box_exit(o, d, ROOM_HI)
     assert np.all(status != 0)  # the room is closed: never a miss
-    hit = status == HIT
+    hit = status == TraceStatus.HIT
     # A ray through a texel that straddles a corner and meets the other wall's plane first is unknown
     # (``_march._partners``: the crease test cannot tell a corner from some silhouettes): 4.7 % here.
     assert hit.mean() > 0.94
@@ -126,9 +124,9 @@ def test_closed_room_corners_let_no_ray_out(room, res, max_miss, min_exact):
     d[outward, axis[outward]] *= -1  # into the room
     out = trace_light_field(tr, jnp.asarray(o, jnp.float32), jnp.asarray(d, jnp.float32))
     status, t = np.asarray(out.status), np.asarray(out.t, np.float64)
-    hit = status == RAY_HIT
+    hit = status == TraceStatus.HIT
     exact = np.isclose(t, _box_exit(o, d, ROOM_HI), rtol=1e-3, atol=1e-3)
-    assert (status == RAY_MISS).mean() <= max_miss, (status == RAY_MISS).mean()
+    assert (status == TraceStatus.MISS).mean() <= max_miss, (status == TraceStatus.MISS).mean()
     assert exact[hit].mean() >= min_exact, exact[hit].mean()
 
 
@@ -146,7 +144,7 @@ def test_surfel_side_is_judged_from_the_probe(room):
         cfg = TraceConfig(hierarchy=hierarchy)
         st, t, _, _ = f(make_tracer(lf, scene.bounds, config=cfg), d)
         st_f, t_f, _, _ = f(make_tracer(flipped, scene.bounds, config=cfg), d)
-        assert np.mean(np.asarray(st) == HIT) > 0.9
+        assert np.mean(np.asarray(st) == TraceStatus.HIT) > 0.9
         np.testing.assert_array_equal(np.asarray(st_f), np.asarray(st))
         np.testing.assert_array_equal(np.asarray(t_f), np.asarray(t))
 
@@ -190,7 +188,7 @@ def test_quad_seen_from_behind_is_hit(quad_from_behind, flip_normals):
     for hierarchy in ("flat", "hiz"):
         tr = make_tracer(lf, bounds, config=TraceConfig(hierarchy=hierarchy))
         out = trace_light_field(tr, jnp.asarray(o, jnp.float32), jnp.asarray(d, jnp.float32))
-        assert np.all(np.asarray(out.status) == RAY_HIT)
+        assert np.all(np.asarray(out.status) == TraceStatus.HIT)
         # A planar surfel is the quad's plane: the crossing is exact up to float32 rounding of the
         # probe-relative coordinates (|q| ≲ 2, so a few ulps of 2).
         np.testing.assert_allclose(np.asarray(out.t), exact, rtol=0, atol=64 * np.finfo(np.float32).eps)
@@ -278,20 +276,20 @@ def test_silhouette_texels_make_no_hit_in_free_space(occluder):
     mcguire = make_tracer(lf, scene.bounds, config=TraceConfig(edge_tol=None, fallback_probes=0), **one)
     out = trace_light_field(mcguire, oj, dj)
     st, t = np.asarray(out.status), np.asarray(out.t)
-    assert np.mean((st == RAY_HIT) & np.isclose(t, at_sheet, rtol=1e-4)) > 0.5  # the defect, shown
+    assert np.mean((st == TraceStatus.HIT) & np.isclose(t, at_sheet, rtol=1e-4)) > 0.5  # the defect, shown
     # hi-Z only: that it answers as the flat march does is test_hierarchies_are_conservative's concern
     # (test_trace_cornell.py); the slow test_hierarchies_agree_where_cells_are_ambiguous repeats it here.
     for hierarchy in ("hiz",):
         cfg = TraceConfig(hierarchy=hierarchy, fallback_probes=0)
         out = trace_light_field(make_tracer(lf, scene.bounds, config=cfg, **one), oj, dj)
         st, t = np.asarray(out.status), np.asarray(out.t)
-        assert set(np.unique(st)) <= {RAY_HIT, RAY_UNRESOLVED}
+        assert set(np.unique(st)) <= {TraceStatus.HIT, TraceStatus.UNRESOLVED}
         # A floor texel's surfel is the floor's plane: exact up to float32 rounding (|q| ≲ 4).
-        np.testing.assert_allclose(t[st == RAY_HIT], exact[st == RAY_HIT], rtol=0, atol=1e-5)
+        np.testing.assert_allclose(t[st == TraceStatus.HIT], exact[st == TraceStatus.HIT], rtol=0, atol=1e-5)
     out = trace_light_field(make_tracer(lf, scene.bounds), oj, dj)  # all probes
     st, t = np.asarray(out.status), np.asarray(out.t)
-    assert np.mean(st == RAY_HIT) > 0.5
-    np.testing.assert_allclose(t[st == RAY_HIT], exact[st == RAY_HIT], rtol=0, atol=1e-5)
+    assert np.mean(st == TraceStatus.HIT) > 0.5
+    np.testing.assert_allclose(t[st == TraceStatus.HIT], exact[st == TraceStatus.HIT], rtol=0, atol=1e-5)
 
 
 def test_fallback_probe_that_sees_the_point_resolves(occluder):
@@ -310,12 +308,12 @@ def test_fallback_probe_that_sees_the_point_resolves(occluder):
     alone = trace_light_field(
         make_tracer(lf, scene.bounds, index=index, config=TraceConfig(fallback_probes=0)), oj, dj
     )
-    assert np.all(np.asarray(alone.status) == RAY_UNRESOLVED)
+    assert np.all(np.asarray(alone.status) == TraceStatus.UNRESOLVED)
     assert np.all(np.asarray(alone.fallback) == 0)
     out = trace_light_field(make_tracer(lf, scene.bounds, index=index), oj, dj)
     st = np.asarray(out.status)
-    assert np.mean(st == RAY_HIT) > 0.95
-    hit = st == RAY_HIT
+    assert np.mean(st == TraceStatus.HIT) > 0.95
+    hit = st == TraceStatus.HIT
     np.testing.assert_allclose(np.asarray(out.t)[hit], exact[hit], rtol=0, atol=1e-5)
     assert np.all(np.asarray(out.probe)[hit] != 0)
     assert np.all(np.asarray(out.fallback)[hit] >= 1)
@@ -334,7 +332,7 @@ def test_hierarchies_agree_where_cells_are_ambiguous(occluder):
         h: trace_light_field(make_tracer(lf, scene.bounds, config=TraceConfig(hierarchy=h)), o, d)
         for h in ("flat", "two_level", "hiz")
     }
-    assert np.mean(np.asarray(outs["flat"].status) == RAY_HIT) > 0.3  # the sides are open: misses too
+    assert np.mean(np.asarray(outs["flat"].status) == TraceStatus.HIT) > 0.3  # the sides are open: misses too
     for h in ("two_level", "hiz"):
         np.testing.assert_array_equal(np.asarray(outs[h].status), np.asarray(outs["flat"].status))
         # rtol: the hit is the same plane crossing, computed from a cell interval split differently.
@@ -565,7 +563,7 @@ def test_no_hit_on_a_nearer_surface_s_extended_plane(pillar):
     exact = np.asarray(BruteForceCaster(scene).closest_hit(o, d).t)
     one = jax.vmap(lambda oo, dd: trace_probe(tr, jnp.int32(0), oo, dd, jnp.float32(0.0), jnp.float32(100.0)))
     status, t = (np.asarray(a) for a in one(o, d)[:2])
-    hit = status == HIT
+    hit = status == TraceStatus.HIT
     assert hit.sum() > 20  # the probe resolves some of them
     short = hit & (t < 0.95 * exact)
     x = np.asarray(o)[short] + t[short, None] * np.asarray(d)[short]
@@ -603,8 +601,10 @@ def test_a_ray_leaving_the_floor_hits_the_pillar_beside_it(pillar):
         )
         status, t = (np.asarray(a) for a in one(o, d)[:2])
         at_face = np.abs(t - exact) <= 0.02 * exact + 2e-3
-        assert np.all(at_face[status == HIT]) and np.all((status == HIT) | (status == 2))
-        return np.mean(status == HIT)
+        assert np.all(at_face[status == TraceStatus.HIT]) and np.all(
+            (status == TraceStatus.HIT) | (status == 2)
+        )
+        return np.mean(status == TraceStatus.HIT)
 
     assert trace(TraceConfig(thickness=0.03)) > 0.75  # 0.83 measured
     # the shell both sides: the face is never met
@@ -655,7 +655,7 @@ def test_edge_on_rule_only_withdraws_hits(room):
     for deg, some in ((60.0, True), (84.5, False)):
         st, t = run(deg)
         changed = st != st0
-        assert np.all(st0[changed] == HIT) and np.all(st[changed] == 2)  # HIT → UNKNOWN only
-        both = (st == HIT) & (st0 == HIT)
+        assert np.all(st0[changed] == TraceStatus.HIT) and np.all(st[changed] == 2)  # HIT → UNKNOWN only
+        both = (st == TraceStatus.HIT) & (st0 == TraceStatus.HIT)
         np.testing.assert_array_equal(t[both], t0[both])
         assert changed.any() == some

@@ -18,16 +18,15 @@ import pytest
 
 from probeplace._core import ConfigError
 from probeplace.geometry import BruteForceCaster, make_caster
-from probeplace.probes import BakeConfig, bake_probes
-from probeplace.probes._index import voxel_index
-from probeplace.probes._trace import (
-    RAY_HIT,
-    RAY_MISS,
-    RAY_UNRESOLVED,
+from probeplace.probes import (
+    BakeConfig,
     TraceConfig,
+    TraceStatus,
+    bake_probes,
     make_tracer,
     trace_light_field,
 )
+from probeplace.probes._index import voxel_index
 from probeplace.scene import load_scene
 from tests.helpers import grid_probe_set, shared_scene_path
 
@@ -94,8 +93,8 @@ def _assert_same(a, b, atol):
 def _assert_covers(ref):
     """The rays exercise every outcome: hits, misses or unresolved rays, and fallback probes."""
     st = np.asarray(ref.status)
-    assert (st == RAY_HIT).sum() > 10
-    assert (st == RAY_UNRESOLVED).sum() > 10
+    assert (st == TraceStatus.HIT).sum() > 10
+    assert (st == TraceStatus.UNRESOLVED).sum() > 10
     assert (np.asarray(ref.fallback) > 0).sum() > 10
     return st
 
@@ -119,7 +118,7 @@ def _wavefront(lf, scene, rays, **kw):
 def test_wavefront_matches_per_ray_cornell(cornell_case):
     scene, lf, rays, ref = cornell_case
     st = _assert_covers(ref)
-    assert (st == RAY_MISS).sum() > 10  # the box's open front
+    assert (st == TraceStatus.MISS).sum() > 10  # the box's open front
     out = _wavefront(lf, scene, rays, wavefront_lanes=256, wavefront_steps=4)
     _assert_same(ref, out, _t_atol(scene))
     assert out.t.dtype == jnp.float32
@@ -136,7 +135,9 @@ def test_wavefront_matches_per_ray_at_the_papers_resolution(cornell):
     assert tr.res == 512 and tr.march_res == 1024
     ref = trace_light_field(tr, *rays)
     st = np.asarray(ref.status)
-    assert (st == RAY_HIT).sum() > 100 and (st == RAY_MISS).sum() > 10  # hits and the open front
+    assert (st == TraceStatus.HIT).sum() > 100 and (
+        st == TraceStatus.MISS
+    ).sum() > 10  # hits and the open front
     _assert_same(ref, _wavefront(lf, cornell, rays, wavefront_lanes=256, wavefront_steps=8), _t_atol(cornell))
 
 

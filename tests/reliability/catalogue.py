@@ -327,7 +327,7 @@ def _tracer_over_limit(c):
 @contextlib.contextmanager
 def _limit(value: str):
     """``$PROBEPLACE_MAX_BYTES=value`` inside the block (the variable restored afterwards)."""
-    from probeplace._core._errors import MAX_BYTES_ENV
+    from probeplace._core import MAX_BYTES_ENV
 
     old = os.environ.get(MAX_BYTES_ENV)
     os.environ[MAX_BYTES_ENV] = value
@@ -451,7 +451,7 @@ def _probe_doc(pos, active=None) -> str:
                        "active": [True] * len(pos) if active is None else active})  # fmt: skip
 
 
-_EVAL = ("probeplace._evaluate_cli._checked_inputs", "evaluate", "--scene", "cornell_box")
+_EVAL = ("probeplace.cli._evaluate._checked_inputs", "evaluate", "--scene", "cornell_box")
 _ONE_PROBE = {"p.json": _probe_doc([[200.0, 250.0, 200.0]])}
 
 
@@ -1185,7 +1185,13 @@ CATALOGUE: list[Entry] = [
         "cli-sun-bad-elevation",
         "cli",
         "`place --sun az=120,el=120`",
-        _cli("probeplace.scene.scene_overrides_from_args", "place", "cornell_box", "--sun", "az=120,el=120"),
+        _cli(
+            "probeplace.cli._scene_options.scene_overrides_from_args",
+            "place",
+            "cornell_box",
+            "--sun",
+            "az=120,el=120",
+        ),
         ConfigError,
         r"^--sun: .*el.*must be in \[-90, 90\], got 120",
     ),
@@ -1194,7 +1200,7 @@ CATALOGUE: list[Entry] = [
         "cli",
         "`evaluate --camera name=c,pos=1,1,1,look_at=1,1,1`",
         _cli(
-            "probeplace.scene.scene_overrides_from_args",
+            "probeplace.cli._scene_options.scene_overrides_from_args",
             "evaluate",
             "--scene",
             "cornell_box",
@@ -1455,7 +1461,7 @@ def _max_bytes_env(value: str):
     """``$PROBEPLACE_MAX_BYTES=value`` read by the memory check (the variable restored afterwards)."""
 
     def run(c):
-        from probeplace._core._errors import memory_limit_bytes
+        from probeplace._core import memory_limit_bytes
 
         with _limit(value):
             return memory_limit_bytes()
@@ -1484,7 +1490,7 @@ CATALOGUE += [
 
 
 # ------------------------------------------------------------------------- probeplace view (issue 36)
-_VIEW = "probeplace.view._cli.checked_input"
+_VIEW = "probeplace.cli._view.checked_input"
 CATALOGUE += [
     Entry(
         "view-missing-path",

@@ -13,7 +13,7 @@ from pathlib import Path
 
 import jax
 
-from probeplace._core._errors import MAX_BYTES_ENV
+from probeplace._core import MAX_BYTES_ENV
 from probeplace.scene._build import MAX_COORDINATE, MIN_EXTENT
 
 from .catalogue import CATALOGUE, Ctx, Entry

@@ -7,7 +7,8 @@ import numpy as np
 import pytest
 
 from probeplace.cli import build_parser, main
-from probeplace.scene import load_scene, scene_overrides_from_args
+from probeplace.cli._scene_options import scene_overrides_from_args
+from probeplace.scene import load_scene
 
 
 @pytest.mark.parametrize(

@@ -84,11 +84,65 @@ def write_probes_json(path: Path, positions=POSITIONS, active=ACTIVE, metadata=N
     return path
 
 
-def write_run(folder: Path, *, bake: bool = True, evaluation: bool = True) -> Path:
-    """The run folder (``DONE`` last, as the runner writes it)."""
+#: the per-probe files of a run of this version (``detail=True``): probe 2 relocated, probe 0 filled
+DETAIL_META = {
+    "method": "grid",
+    "coverage": 0.8,
+    "valid_space": {"n_relocated": 1},
+    "budget_fit": {"n_filled": 1},
+    "relocated_probes": [2],
+    "projected_probes": [],
+    "filled_probes": [0],
+}
+SEEN = np.array([10, 0, 5, 3])
+UNIQUE = np.array([4, 0, 1, 0])
+N_COVERABLE = 20
+UNCOVERED = np.array([[100.0, 0.5, 100.0], [200.0, 0.5, 300.0], [300.0, 548.0, 200.0]], np.float32)
+#: each baked row's share of the diffuse / glossy MSE (rows 4-7 are padding: charged nothing)
+DIFFUSE_SHARE = np.array([0.002, 0.0, 0.006, 0.0, 0, 0, 0, 0])
+GLOSSY_SHARE = np.array([0.0, 0.0, 3e-5, 0.0, 0, 0, 0, 0])
+MSE = {"diffuse_indirect": 0.01, "glossy_indirect": 5e-5}
+
+
+def write_detail(folder: Path, *, evaluation: bool = True) -> None:
+    """``coverage_detail.npz`` beside probes.json and, with ``evaluation``, ``eval/probe_error.npz``."""
+    np.savez_compressed(
+        folder / "coverage_detail.npz",
+        format=np.asarray("probeplace.CoverageDetail/1"),
+        seen=SEEN,
+        unique=UNIQUE,
+        n_multiple=np.asarray(5),
+        uncovered=np.arange(3),
+        uncovered_pos=UNCOVERED,
+        uncovered_normal=np.tile(np.float32([0, 1, 0]), (3, 1)),
+        n_samples=np.asarray(24),
+        n_coverable=np.asarray(N_COVERABLE),
+        coverage=np.asarray(0.8),
+    )
+    if evaluation:
+        pos = np.concatenate([POSITIONS, np.repeat(POSITIONS[-1:], N_ROWS - len(POSITIONS), axis=0)])
+        np.savez_compressed(
+            folder / "eval" / "probe_error.npz",
+            format=np.asarray("probeplace.ProbeError/1"),
+            pos_world=pos,
+            diffuse_indirect=DIFFUSE_SHARE,
+            glossy_indirect=GLOSSY_SHARE,
+            glossy_indirect_unresolved=np.zeros(N_ROWS),
+            unattributed_diffuse_indirect=np.asarray(MSE["diffuse_indirect"] - DIFFUSE_SHARE.sum()),
+            unattributed_glossy_indirect_miss=np.asarray(MSE["glossy_indirect"] - GLOSSY_SHARE.sum()),
+            unattributed_glossy_indirect_unresolved=np.asarray(0.0),
+            unattributed_glossy_indirect_other=np.asarray(0.0),
+            mse_diffuse_indirect=np.asarray(MSE["diffuse_indirect"]),
+            mse_glossy_indirect=np.asarray(MSE["glossy_indirect"]),
+        )
+
+
+def write_run(folder: Path, *, bake: bool = True, evaluation: bool = True, detail: bool = False) -> Path:
+    """The run folder (``DONE`` last, as the runner writes it); ``detail``: with the per-probe files of
+    this version (:func:`write_detail`, :data:`DETAIL_META`)."""
     folder.mkdir(parents=True, exist_ok=True)
     (folder / "config.yaml").write_text("name: viewtest\nscene:\n  name: cornell_box\n")
-    write_probes_json(folder / "probes.json")
+    write_probes_json(folder / "probes.json", metadata=DETAIL_META if detail else None)
     if bake:
         write_npz(folder / "probes_baked.npz")
     if evaluation:
@@ -99,5 +153,7 @@ def write_run(folder: Path, *, bake: bool = True, evaluation: bool = True) -> Pa
         Image.fromarray(err).save(ev / "error_full_false.png")
         metrics = {"view": "front", "width": EVAL_W, "height": EVAL_H, "error_png_vmax": {"full": 0.25}}
         (ev / "metrics.json").write_text(json.dumps(metrics))
+    if detail:
+        write_detail(folder, evaluation=evaluation)
     (folder / "DONE").write_text("ok\n")
     return folder

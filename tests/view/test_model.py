@@ -139,3 +139,82 @@ def test_pick_probe_takes_the_first_marker_on_the_ray():
     assert pick_probe(pos, radii, (3, 0.4, 0), (0, 0, 1)) == 2
     assert pick_probe(pos, radii, (0, 0, 0), (0, 1, 0)) is None
     assert pick_probe(pos, radii, (0, 0, 10), (0, 0, 1)) is None  # markers behind the camera
+
+
+# ---------------------------------------------------------------- the per-probe figures of this version
+@pytest.fixture(scope="module")
+def detail_model(tmp_path_factory):
+    run = fx.write_run(tmp_path_factory.mktemp("view_detail") / "run", detail=True)
+    return load_view_model(resolve_input(run))
+
+
+def test_relocated_and_filled_probes_get_their_colours(detail_model):
+    """probes.json names probe 2 relocated and probe 0 filled; probe 1 stays magenta (the bake's inside
+    flag wins), probe 3 grey (inactive)."""
+    from probeplace.view._model import FILLED, INACTIVE, INSIDE, RELOCATED
+
+    want = np.array([FILLED, INSIDE, RELOCATED, INACTIVE])
+    np.testing.assert_array_equal(detail_model.status, want)
+    np.testing.assert_array_equal(detail_model.colours("status"), STATUS_RGB[want])
+    assert detail_model.status_note.startswith("1 relocated out of geometry, 1 filled to the budget")
+    assert detail_model.unavailable == {}
+
+
+def test_coverage_and_error_layers_are_the_files(detail_model):
+    from matplotlib import colormaps
+
+    from probeplace.view._model import COVERAGE_SEEN, COVERAGE_UNIQUE, ERROR_DIFFUSE, ERROR_GLOSSY
+
+    m = detail_model
+    assert m.colour_options == (
+        "status",
+        "mean visible distance",
+        COVERAGE_SEEN,
+        COVERAGE_UNIQUE,
+        ERROR_DIFFUSE,
+        ERROR_GLOSSY,
+    )
+    viridis = lambda t: np.round(255 * colormaps["viridis"](t)[:, :3]).astype(np.uint8)
+    np.testing.assert_array_equal(m.colours(COVERAGE_SEEN), viridis(fx.SEEN / fx.SEEN.max()))
+    np.testing.assert_array_equal(m.colours(COVERAGE_UNIQUE), viridis(fx.UNIQUE / fx.UNIQUE.max()))
+    # the error file holds the bake's 8 rows; the shown probes are rows 0-3
+    np.testing.assert_array_equal(m.error.shares["diffuse_indirect"], fx.DIFFUSE_SHARE[:4])
+    np.testing.assert_array_equal(
+        m.colours(ERROR_GLOSSY), viridis(fx.GLOSSY_SHARE[:4] / fx.GLOSSY_SHARE.max())
+    )
+    assert m.error.mse == fx.MSE
+    assert m.error.unattributed["diffuse_indirect"] == pytest.approx(0.002)
+    np.testing.assert_array_equal(m.coverage.uncovered, fx.UNCOVERED)
+    assert "3 seen by no probe" in m.coverage_note
+    assert "of the diffuse_indirect MSE 0.01" in m.legend(ERROR_DIFFUSE)
+
+
+def test_the_viewer_draws_the_uncovered_samples_and_recolours(detail_model):
+    from probeplace.view._model import COVERAGE_SEEN, FILLED, RELOCATED
+
+    viewer = start_viewer(detail_model, port=0)
+    try:
+        g = viewer._gui
+        cloud = g["uncovered_points"]
+        assert not cloud.visible
+        g["show_uncovered"].value = True
+        viewer.server.flush()
+        assert cloud.visible
+        np.testing.assert_array_equal(cloud.points, fx.UNCOVERED)
+        np.testing.assert_array_equal(g["probes"].batched_colors[[0, 2]], STATUS_RGB[[FILLED, RELOCATED]])
+        g["colour"].value = COVERAGE_SEEN
+        viewer.restyle()
+        np.testing.assert_array_equal(g["probes"].batched_colors, detail_model.colours(COVERAGE_SEEN))
+        assert "of 20 coverable samples" in g["colour_legend"].content
+        viewer.select(0)
+        assert "sees 10 of 20 coverable surface samples, 4 of them alone" in g["selected"].content
+        assert "diffuse_indirect 0.002 (20 %)" in g["selected"].content
+    finally:
+        viewer.stop()
+
+
+def test_a_run_of_an_older_version_says_rerun(model):
+    """The shared fixture run has none of the per-probe files: each figure says why and how to get it."""
+    for name in ("coverage contribution", "uncovered surface samples", "error contribution"):
+        assert "rerun with this version" in model.unavailable[name]
+    assert model.coverage is None and model.error is None

@@ -23,7 +23,7 @@ from ._samples import json_number as json_number
 from ._samples import mean_and_se as mean_and_se
 from ._samples import smallest_count as smallest_count
 
-# name -> the private module defining it (all but _io and _plotting import JAX)
+# name -> the private module defining it (all but _io, _memory and _plotting import JAX)
 _LAZY = {
     **dict.fromkeys(
         (
@@ -58,6 +58,7 @@ _LAZY = {
         ),
         "_octahedral",
     ),
+    **dict.fromkeys(("MAX_BYTES_ENV", "check_memory", "memory_limit_bytes"), "_memory"),
     **dict.fromkeys(("pack_normal", "unpack_normal"), "_packed"),
     "load_pyplot": "_plotting",
     **dict.fromkeys(("host_rng", "stream"), "_random"),
@@ -109,6 +110,9 @@ if TYPE_CHECKING:  # what static checkers and IDEs see; __getattr__ gives the sa
     from ._math import safe_norm as safe_norm
     from ._math import safe_normalize as safe_normalize
     from ._math import safe_sqrt as safe_sqrt
+    from ._memory import MAX_BYTES_ENV as MAX_BYTES_ENV
+    from ._memory import check_memory as check_memory
+    from ._memory import memory_limit_bytes as memory_limit_bytes
     from ._octahedral import add_border as add_border
     from ._octahedral import border_index as border_index
     from ._octahedral import jittered_texel_directions as jittered_texel_directions

@@ -13,7 +13,8 @@ import shutil
 import tempfile
 from pathlib import Path
 
-from ._errors import ConfigError, check_memory
+from ._errors import ConfigError
+from ._memory import check_memory
 
 # A .npz is a zip archive: every one starts with a local file header (or, empty, the end record).
 _ZIP_MAGIC = (b"PK\x03\x04", b"PK\x05\x06")

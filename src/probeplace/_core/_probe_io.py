@@ -1,18 +1,11 @@
-"""The ProbeSet file: what ``probeplace place`` writes and ``probeplace export`` / bake read.
-
-A small, human-readable JSON document (written atomically)::
-
-    {"format": "probeplace.ProbeSet/1", "method": "...", "units_m": 1.0, "up_axis": "+Y",
-     "handedness": "right", "positions": [[x, y, z], ...], "active": [true, ...],
-     "metadata": {...free-form: config, seed, timings, coverage...}}
-
-Positions are in the scene's world frame and units (``units_m`` metres per unit).
+"""The ProbeSet file: what ``probeplace place`` writes and ``probeplace export`` / bake read, as
+``ProbeSet`` pytrees. A small, human-readable JSON document (written atomically; its layout and the
+checks on reading are ``_probe_files``'). Positions are in the scene's world frame and units (``units_m``
+metres per unit); ``metadata`` is free-form: config, seed, timings, coverage.
 """
 
 from __future__ import annotations
 
-import json
-import math
 import os
 from pathlib import Path
 
@@ -21,9 +14,8 @@ import numpy as np
 
 from ._errors import ProbeplaceError
 from ._io import write_json_atomic
+from ._probe_files import PROBE_SET_FORMAT, parse_probe_set, read_json_doc
 from ._types import ProbeSet
-
-PROBE_SET_FORMAT = "probeplace.ProbeSet/1"
 
 
 def save_probe_set(
@@ -52,28 +44,8 @@ def load_probe_set(path: str | os.PathLike) -> tuple[ProbeSet, dict]:
     Raises:
         ProbeplaceError: missing file, invalid JSON, wrong format tag, bad shapes or non-finite values.
     """
-    path = Path(path)
-    if not path.is_file():
-        raise ProbeplaceError(f"probe set file not found: {path}")
-    try:
-        doc = json.loads(path.read_text())
-    except (json.JSONDecodeError, UnicodeDecodeError) as e:
-        raise ProbeplaceError(f"{path}: not valid JSON ({e})") from None
-    if not isinstance(doc, dict) or doc.get("format") != PROBE_SET_FORMAT:
-        raise ProbeplaceError(f"{path}: not a probe set file (format {PROBE_SET_FORMAT!r} expected)")
-    try:
-        pos = np.asarray(doc["positions"], np.float64).reshape(-1, 3)
-        active = np.asarray(doc.get("active", [True] * len(pos)), bool).reshape(-1)
-    except (KeyError, ValueError, TypeError) as e:
-        raise ProbeplaceError(f"{path}: bad positions/active arrays ({e})") from None
-    if len(active) != len(pos):
-        raise ProbeplaceError(f"{path}: {len(pos)} positions but {len(active)} active flags")
-    if not np.isfinite(pos).all() or not math.isfinite(float(doc.get("units_m", 1.0))):
-        raise ProbeplaceError(f"{path}: non-finite probe positions or units")
+    doc = parse_probe_set(read_json_doc(path, "probe set file"), path)
     probes = ProbeSet(
-        pos_world=jnp.asarray(pos, jnp.float32),
-        active=jnp.asarray(active),
-        method=str(doc.get("method", "manual")),
+        pos_world=jnp.asarray(doc.positions, jnp.float32), active=jnp.asarray(doc.active), method=doc.method
     )
-    meta = {k: v for k, v in doc.items() if k not in ("positions", "active")}
-    return probes, meta
+    return probes, doc.doc

@@ -1,6 +1,8 @@
 """evaluate stage: render a view with the probes and with the reference, compare (DESIGN.md
 "Evaluation protocol"; docs/evaluate.md)."""
 
+from ._attribute import diffuse_contributions as diffuse_contributions
+from ._attribute import glossy_contributions as glossy_contributions
 from ._config import EvalConfig as EvalConfig
 from ._config import check_eval_memory as check_eval_memory
 from ._decompose import bootstrap_ci as bootstrap_ci

@@ -6,9 +6,7 @@ import dataclasses
 import math
 
 from .._core import ConfigError, check_count, check_target, is_auto
-from ..probes._glossy import DEFAULT_GLOSSY_FILTER, GLOSSY_FILTERS
-from ..probes._shade import SHADINGS
-from ..probes._trace import TraceConfig
+from ..probes import DEFAULT_GLOSSY_FILTER, GLOSSY_FILTERS, SHADINGS, TraceConfig
 from ._decompose import LEAK_SIGMAS
 
 

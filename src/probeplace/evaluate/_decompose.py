@@ -43,8 +43,10 @@ from __future__ import annotations
 
 import numpy as np
 
-#: Tracer status codes (``probes.RAY_MISS`` / ``RAY_HIT`` / ``RAY_UNRESOLVED``) → names.
-STATUS_NAMES = {0: "miss", 1: "hit", 2: "unresolved"}
+from ..probes import TraceStatus
+
+#: Tracer status codes (``probes.TraceStatus``) → their metrics names.
+STATUS_NAMES = {int(s): s.label for s in TraceStatus}
 _LUMA = np.array([0.2126, 0.7152, 0.0722])  # Rec. 709, as _core.luminance
 #: Standard errors of the reference by which a probe pixel must exceed it to count as leaked light.
 LEAK_SIGMAS = 4.0
@@ -54,6 +56,16 @@ def pixel_means(v: np.ndarray, n_pixels: int, spp: int) -> np.ndarray:
     """(n_pixels·spp, …) pixel-major samples → (n_pixels, …) per-pixel means."""
     v = np.asarray(v, np.float64)
     return v.reshape(n_pixels, spp, *v.shape[1:]).mean(axis=1)
+
+
+def sample_errors(w, l_est, l_ref, spp: int) -> tuple[np.ndarray, np.ndarray]:
+    """(e_s, e_px): each sample's part e_s = w_s (L_est,s − L_ref,s) / S (n, 3) of its pixel's error, and
+    the pixels' errors e_px = Σ_s e_s (n / S, 3) — samples pixel-major, S = ``spp``."""
+    w = np.asarray(w, np.float64)
+    if w.shape[0] % spp:
+        raise ValueError(f"the sample count {w.shape[0]} is not a multiple of spp={spp}")
+    e_s = w * (np.asarray(l_est, np.float64) - np.asarray(l_ref, np.float64)) / spp
+    return e_s, e_s.reshape(w.shape[0] // spp, spp, -1).sum(axis=1)
 
 
 def glossy_terms(
@@ -69,7 +81,7 @@ def glossy_terms(
     Args:
         w: (n, 3) estimator weights w = f_s cos θ / pdf (0 where a sample has no glossy ray).
         l_probe, l_ref, l_perfect: (n, 3) radiance from the probes, the CRN reference and the perfect trace.
-        status: (n,) tracer status (0 miss, 1 hit, 2 unresolved; other values: no ray, weight 0).
+        status: (n,) tracer status (``probes.TraceStatus``; other values: no ray, weight 0).
         spp: samples per pixel S (n = pixels × S, pixel-major).
 
     Returns:
@@ -77,24 +89,16 @@ def glossy_terms(
         ``by_status`` {miss, hit, unresolved} (adds up to ``mse``), ``resolved_only``, and the per-pixel
         squared errors ``sq_px`` / ``sq_px_perfect`` ((n_pixels,), mean over RGB) for confidence intervals.
     """
-    w = np.asarray(w, np.float64)
     status = np.asarray(status)
-    n = w.shape[0]
-    if n % spp:
-        raise ValueError(f"the sample count {n} is not a multiple of spp={spp}")
-    n_px = n // spp
-    e_s = w * (np.asarray(l_probe, np.float64) - np.asarray(l_ref, np.float64)) / spp
-    e_px = e_s.reshape(n_px, spp, -1).sum(axis=1)
-    e_perf = (w * (np.asarray(l_perfect, np.float64) - np.asarray(l_ref, np.float64)) / spp).reshape(
-        n_px, spp, -1
-    )
-    e_perf = e_perf.sum(axis=1)
+    e_s, e_px = sample_errors(w, l_probe, l_ref, spp)
+    n_px = e_px.shape[0]
+    e_perf = sample_errors(w, l_perfect, l_ref, spp)[1]
     mse = float(np.mean(e_px**2))
     mse_p = float(np.mean(e_perf**2))
     # Per-sample charge: the sample's own error times its pixel's total error, / (pixels × channels).
     charge = np.sum(np.repeat(e_px, spp, axis=0) * e_s, axis=1) / e_px.size
     by_status = {name: float(np.sum(charge[status == k])) for k, name in STATUS_NAMES.items()}
-    e_res = (e_s * (status != 2)[:, None]).reshape(n_px, spp, -1).sum(axis=1)
+    e_res = (e_s * (status != TraceStatus.UNRESOLVED)[:, None]).reshape(n_px, spp, -1).sum(axis=1)
     return {
         "mse": mse,
         "mse_perfect_trace": mse_p,

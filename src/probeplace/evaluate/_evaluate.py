@@ -58,11 +58,9 @@ import jax.numpy as jnp
 import numpy as np
 
 from .._core import ConfigError, LightFieldProbes, Scene, is_auto, scene_box
-from ..probes import tracer_bytes
-from ..probes._bake import check_bake_settings
-from ..probes._glossy import glossy_maps
-from ..probes._trace import RAY_UNRESOLVED
+from ..probes import TraceStatus, check_bake_settings, glossy_maps, tracer_bytes
 from ..render import default_caster, seed_from_key
+from ._attribute import probe_error
 from ._config import EvalConfig
 from ._decompose import (
     STATUS_NAMES,
@@ -100,10 +98,13 @@ EVAL_IMAGES = (
 @dataclasses.dataclass(frozen=True)
 class EvalResult:
     """``metrics``: JSON-ready dict (docs/evaluate.md); ``images``: name → (h, w, 3) float32 arrays
-    (``ref_*``, ``probe_*`` per component, ``error_*`` = |probe − ref|, ``perfect_trace_glossy_indirect``)."""
+    (``ref_*``, ``probe_*`` per component, ``error_*`` = |probe − ref|, ``perfect_trace_glossy_indirect``);
+    ``probe_error``: each probe's share of the diffuse and glossy MSE (``_attribute.probe_error``, the
+    arrays of ``probe_error.npz``), or None when not recorded."""
 
     metrics: dict
     images: dict[str, np.ndarray]
+    probe_error: dict[str, np.ndarray] | None = None
 
 
 def memory_bytes(lf: LightFieldProbes, subdivide: int) -> dict:
@@ -229,7 +230,7 @@ def _glossy_breakdown(scene, config: EvalConfig, prim, crn, shading, perfect, im
     rel = lambda a, b: relative_mse(a, b, eps=config.relmse_eps)
     return {
         "glossy_rays": n_gl,
-        "unresolved_share": float(np.mean(st[gl] == RAY_UNRESOLVED)) if n_gl else 0.0,
+        "unresolved_share": float(np.mean(st[gl] == TraceStatus.UNRESOLVED)) if n_gl else 0.0,
         **_seen_shares(st, shading.origin_seen),
         "mse_glossy_perfect_trace": terms["mse_perfect_trace"],
         # What even exact probes storing view-independent radiance miss: the specular lobe of the surface a
@@ -263,7 +264,9 @@ def _seen_shares(status: np.ndarray, seen: np.ndarray) -> dict:
     n_seen = int(seen_gl.sum())
     return {
         "origin_seen_share": n_seen / n_gl if n_gl else 0.0,
-        "unresolved_seen_share": float(np.mean(status[seen_gl] == RAY_UNRESOLVED)) if n_seen else None,
+        "unresolved_seen_share": float(np.mean(status[seen_gl] == TraceStatus.UNRESOLVED))
+        if n_seen
+        else None,
     }
 
 
@@ -390,4 +393,8 @@ def score(
             ratios,
             config.noise_target,
         )
-    return EvalResult(metrics=metrics, images=images)
+    shares = probe_error(lf.pos_world, prim, shading, probe_d, ref_img["diffuse_indirect"], crn.radiance)
+    if shares is not None:
+        for c in ("diffuse_indirect", "glossy_indirect"):
+            shares[f"mse_{c}"] = np.asarray(metrics[f"mse_{c}"], np.float64)
+    return EvalResult(metrics=metrics, images=images, probe_error=shares)

@@ -58,16 +58,15 @@ def check_view_cameras(scene: Scene, caster, layers=(), scene_file=None, view: s
     Args:
         scene: the loaded scene.
         caster: an exact caster of it.
-        layers: its config layers (``scene._sidecar_apply.scene_layers``), to name the file a camera is from.
+        layers: its config layers (``scene.scene_layers``), to name the file a camera is from.
         scene_file: the scene file (``None``: a built-in), for cameras no layer sets.
         view: the view about to be rendered (``None``: none in particular).
 
     Raises:
         ConfigError: one line naming the sidecar (or file), the camera, its position and the fix.
     """
-    from ..probes import BakeConfig
-    from ..probes._inside import points_in_solid
-    from ..scene._sidecar_apply import camera_origin
+    from ..probes import BakeConfig, points_in_solid
+    from ..scene import camera_origin
 
     if not scene.views:
         return
@@ -110,7 +109,7 @@ def _pixel_rays(cam, res: int) -> tuple[np.ndarray, np.ndarray]:
 
 def _first_hits(scene: Scene, caster, res: int) -> tuple[np.ndarray, np.ndarray]:
     """(points, unit normals facing the viewer) of the pixel-centre rays of every view that hit."""
-    from ..probes._inside import face_normals, host_closest_hit
+    from ..probes import face_normals, host_closest_hit
 
     ng = face_normals(scene)
     ng /= np.maximum(np.linalg.norm(ng, axis=1, keepdims=True), 1e-300)
@@ -176,7 +175,7 @@ def light_reach(scene: Scene, caster, *, res: int = VIEW_RES) -> tuple[int, dict
 def warn_unreached_lights(scene: Scene, caster, scene_file=None) -> dict[str, int]:
     """Warn, naming the figure and the sidecar keys to change, for each light that reaches none of the
     surface points the views see (:func:`light_reach`); returns the reach."""
-    from ..scene._sidecar import sidecar_path
+    from ..scene import sidecar_path
 
     total, reach = light_reach(scene, caster)
     where = (
@@ -218,7 +217,7 @@ def check_views_and_lights(
     Raises:
         ConfigError: a camera inside solid geometry (:func:`check_view_cameras`).
     """
-    from ..scene._sidecar_apply import scene_layers
+    from ..scene import scene_layers
 
     caster = caster if caster is not None else host_caster(scene)
     if caster is None:

@@ -20,12 +20,19 @@ import numpy as np
 from jaxtyping import Array, Float
 
 from .._core import Camera, LightFieldProbes, Scene, scene_box
-from ..probes import origins_seen
-from ..probes._bake import bake_depth_for
-from ..probes._glossy import glossy_maps, glossy_trace, perfect_trace_radiance
-from ..probes._shade import sh_coefficients, shade_irradiance
-from ..probes._trace import make_tracer
+from ..probes import (
+    bake_depth_for,
+    glossy_maps,
+    glossy_trace,
+    irradiance_weights,
+    make_tracer,
+    origins_seen,
+    perfect_trace_radiance,
+    sh_coefficients,
+    shade_irradiance,
+)
 from ..render import (
+    RAY_EPS,
     BrdfParams,
     RenderConfig,
     camera_rays,
@@ -34,13 +41,12 @@ from ..render import (
     path_uniforms,
     pdf_brdf,
     render,
+    sample_cosine_hemisphere,
     sample_ggx_vndf,
     to_local,
     to_world,
     trace_rays,
 )
-from ..render._integrator import RAY_EPS
-from ..render._sampling import sample_cosine_hemisphere
 from ._config import EvalConfig
 
 #: Status of samples without a glossy ray.
@@ -99,7 +105,12 @@ class ProbeShading:
     """Per sample: irradiance E (zeros where invalid), glossy radiance, tracer status (``NO_RAY`` where
     there is no glossy ray), light-field hit distance and MIP level, whether its glossy ray's origin is
     seen by one of the K nearest usable probes (``probes.origins_seen``; False without a ray); shading
-    time per frame (median of repeats) and compile time (first run − median)."""
+    time per frame (median of repeats) and compile time (first run − median). Which probes shaded each
+    sample (``None`` when not recorded): ``probe``, the probe whose radiance the glossy read used
+    (``GlossyResult.probe``: the resolving probe of a hit, the nearest usable probe of an unresolved ray;
+    -1 on a miss or without a ray); ``diffuse_ids`` / ``diffuse_weights``, (n, k) the probes the diffuse
+    irradiance blended and their normalised weights (``probes.irradiance_weights``; id -1, weight 0 in an
+    unused slot and for invalid samples)."""
 
     irradiance: np.ndarray
     glossy: np.ndarray
@@ -109,6 +120,9 @@ class ProbeShading:
     origin_seen: np.ndarray
     seconds_per_frame: float
     compile_seconds: float
+    probe: np.ndarray | None = None
+    diffuse_ids: np.ndarray | None = None
+    diffuse_weights: np.ndarray | None = None
 
 
 @dataclasses.dataclass(frozen=True)
@@ -312,15 +326,25 @@ def shade_probes(
     n = prim.n_samples
     glossy, status = np.zeros((n, 3)), np.full(n, NO_RAY, np.int32)
     t, lod, seen = np.full(n, np.inf), np.zeros(n), np.zeros(n, bool)
+    probe = np.full(n, -1, np.int32)
     if g:
         gi = prim.glossy_idx
         glossy[gi] = np.asarray(res.radiance, np.float64)
         status[gi] = np.asarray(res.status)
         t[gi] = np.asarray(res.t, np.float64)
         lod[gi] = np.asarray(res.lod, np.float64)
+        probe[gi] = np.asarray(res.probe)
         seen[gi] = np.asarray(origins_seen(tracer, prim.origins))
     E = np.where(prim.valid[:, None], np.asarray(E, np.float64), 0.0)
-    return ProbeShading(E, glossy, status, t, lod, seen, per_frame, max(first - per_frame, 0.0))
+    # Untimed: which probes the diffuse shading blended (the same weights, probes.irradiance_weights).
+    ids, w = irradiance_weights(
+        lf, prim.x, prim.n, method=config.shading, index=tracer.index, normal_bias=config.normal_bias
+    )
+    ids = np.where(prim.valid[:, None], ids, -1).astype(np.int32)
+    w = np.where(prim.valid[:, None], np.asarray(w, np.float64), 0.0)
+    return ProbeShading(
+        E, glossy, status, t, lod, seen, per_frame, max(first - per_frame, 0.0), probe, ids, w
+    )
 
 
 def perfect_trace(

@@ -15,24 +15,28 @@ from pathlib import Path
 import numpy as np
 from PIL import Image
 
-from .._core import write_json_atomic
+from .._core import write_atomic, write_json_atomic
 from ..render import save_exr, save_png
+from ._attribute import PROBE_ERROR_FILE
 from ._evaluate import EVAL_COMPONENTS, EVAL_IMAGES, EvalResult
 
 # Per-file allowance for headers, metadata and the file system's block rounding, bytes.
 _FILE_OVERHEAD = 8192
 
 
-def evaluation_bytes(width: int, height: int) -> int:
+def evaluation_bytes(width: int, height: int, n_probes: int = 0) -> int:
     """An upper bound on the bytes :func:`write_evaluation` writes for a ``width`` × ``height`` image:
     one 8-bit RGB PNG per image (zlib never grows data by more than ~0.03 %, so ≤ 3.01 bytes a pixel plus
     the row filter byte), the false-colour maps (with their colour bar: ≤ 1.2× the width), and one EXR
-    holding every image as float32 RGB (12 bytes a pixel, uncompressed), plus per-file overhead."""
+    holding every image as float32 RGB (12 bytes a pixel, uncompressed), plus per-file overhead; and
+    ``probe_error.npz``: 36 bytes a probe (three float64 shares and a float32 position), a 2 KiB
+    allowance for its zip and array headers and scalars, and the file overhead."""
     px = int(width) * int(height)
     png = int(px * 3.01) + int(height) + _FILE_OVERHEAD
     false_png = int(1.2 * px * 3.01) + int(height) + _FILE_OVERHEAD
     exr = 12 * px * len(EVAL_IMAGES) + _FILE_OVERHEAD
-    return len(EVAL_IMAGES) * png + len(EVAL_COMPONENTS) * false_png + exr + _FILE_OVERHEAD
+    shares = int(36 * int(n_probes) * 1.01) + 2048 + _FILE_OVERHEAD
+    return len(EVAL_IMAGES) * png + len(EVAL_COMPONENTS) * false_png + exr + shares + _FILE_OVERHEAD
 
 
 # Viridis at 9 stops (matplotlib's table, sampled), interpolated linearly: perceptually ordered.
@@ -77,9 +81,10 @@ def false_colour(err: np.ndarray, vmax: float | None = None, *, bar: bool = True
 
 
 def write_evaluation(result: EvalResult, out_dir: str | os.PathLike) -> dict[str, Path]:
-    """Write ``metrics.json``, ``images.exr`` (every image as a layer), one tone-mapped PNG per image and
+    """Write ``metrics.json``, ``images.exr`` (every image as a layer), one tone-mapped PNG per image,
     ``error_<component>_false.png`` (viridis, colour bar on the right, scale in metrics.json under
-    ``error_png_vmax``) into ``out_dir``, all or nothing (module docstring). Returns name → path."""
+    ``error_png_vmax``) and ``probe_error.npz`` (each probe's share of the error, when the result has
+    it) into ``out_dir``, all or nothing (module docstring). Returns name → path."""
     out = Path(out_dir)
     made = not out.exists()
     out.mkdir(parents=True, exist_ok=True)
@@ -114,6 +119,11 @@ def _write_files(result: EvalResult, out: Path) -> dict[str, Path]:
     for name, img in result.images.items():
         paths[name] = save_png(out / f"{name}.png", img)
     paths["exr"] = save_exr(out / "images.exr", result.images, main="probe_full")
+    if result.probe_error is not None:  # each probe's share of the error (_attribute)
+        arrays = result.probe_error
+        paths["probe_error"] = write_atomic(
+            out / PROBE_ERROR_FILE, lambda f: np.savez_compressed(f, **arrays)
+        )
     metrics = dict(result.metrics)
     metrics["error_png_vmax"] = vmax
     paths["metrics"] = write_json_atomic(out / "metrics.json", metrics)

@@ -18,15 +18,13 @@ from ._run import load_experiment_scene as load_experiment_scene
 from ._run import run as run
 from ._run import run_dir as run_dir
 from ._run import run_name as run_name
-from ._schema import BakeConfig as BakeConfig
 from ._schema import BakeStage as BakeStage
-from ._schema import EvalConfig as EvalConfig
 from ._schema import EvalStage as EvalStage
 from ._schema import ExperimentConfig as ExperimentConfig
 from ._schema import ExportConfig as ExportConfig
 from ._schema import PlacerConfig as PlacerConfig
 from ._schema import RefinerConfig as RefinerConfig
-from ._schema import SceneConfig as SceneConfig
+from ._schema import SceneStage as SceneStage
 from ._schema import TracerConfig as TracerConfig
 from ._schema import bake_config as bake_config
 from ._schema import bake_values as bake_values

@@ -99,7 +99,7 @@ def _references(path: Path) -> list[Path]:
                 out.append(path.parent / tok[1].strip())
         return out
     if ext in (".gltf", ".glb"):
-        from ..scene._gltf import read_gltf_json
+        from ..scene import read_gltf_json
 
         uris = [b.get("uri") for b in read_gltf_json(path).get("buffers", []) if isinstance(b, dict)]
         return [path.parent / unquote(u) for u in uris if isinstance(u, str) and not u.startswith("data:")]

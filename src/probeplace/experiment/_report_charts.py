@@ -221,7 +221,7 @@ def fig_memory(runs: list[dict], labels: list[str], col: dict):
 
 def fig_errors(runs: list[dict], component: str = "glossy_indirect"):
     """The per-pixel error images of the runs that saved them, on one colour scale."""
-    from ..render._image_io import load_exr
+    from ..render import load_exr
 
     imgs = []
     for r in sorted(runs, key=lambda r: (r["label"], r["n_probes"], r["seed"])):

@@ -127,7 +127,7 @@ def black_mse(r: dict, key: str = PRIMARY) -> float | None:
     exr = r["dir"] / "eval" / "images.exr"
     if not exr.exists():
         return None
-    from ..render._image_io import load_exr
+    from ..render import load_exr
 
     ref = load_exr(exr).get(f"ref_{comp}")
     return None if ref is None else float(np.mean(np.asarray(ref, np.float64) ** 2))

@@ -2,7 +2,8 @@
 
 Stages: load the scene (optionally offset/rotated) → place (timed) → bake (timed, progress bar) →
 evaluate (when ``probeplace.evaluate`` provides it) → export (optional) → write ``config.yaml``,
-``metrics.json``, ``env.json``, the probe set, the baked probes, images and ``DONE``.
+``metrics.json``, ``env.json``, the probe set and its ``coverage_detail.npz``, the baked probes, images
+and ``DONE``.
 
 **Timings** (``metrics.json`` ``timings``, seconds). Every timed stage ``X`` of ``place``, ``bake`` and
 ``eval`` has ``X_s`` (wall time of the stage), ``X_compile_s`` (the part spent compiling, see
@@ -40,6 +41,10 @@ from ._schema import (
 )
 
 log = logging.getLogger(__name__)
+
+#: Beside ``probes.json``: each probe's part in the coverage and the uncovered samples (docs/view.md).
+COVERAGE_DETAIL = "coverage_detail.npz"
+COVERAGE_DETAIL_FORMAT = "probeplace.CoverageDetail/1"
 
 
 class EvaluationUnavailable(ProbeplaceError):
@@ -230,7 +235,7 @@ def _check_backends(cfg: ExperimentConfig) -> None:
         ("eval.backend", cfg.eval.enabled, cfg.eval.backend),
     ):
         if used and backend == "mitsuba":
-            from ..render._mitsuba_backend import load_mitsuba
+            from ..render import load_mitsuba
 
             try:
                 load_mitsuba()
@@ -319,7 +324,7 @@ def _execute(cfg: ExperimentConfig, partial: Path, final: Path) -> dict:
 
     from .._core._progress import progress_bar
     from ..render import resolve_backend
-    from ..scene._summary import scene_summary
+    from ..scene import scene_summary
 
     (partial / "config.yaml").write_text(config_to_yaml(cfg))
     _results.write_json(partial / "env.json", _results.environment())
@@ -478,8 +483,29 @@ def _place_stage(cfg: ExperimentConfig, scene, translation, partial: Path, final
     )
     metrics["inside_geometry"] = _inside_sdf(scene, pos)
     save_probe_set(partial / "probes.json", probes, units_m=scene.unit_m, metadata=_jsonable(placed.metadata))
+    t0 = time.perf_counter()
+    _write_coverage_detail(partial / COVERAGE_DETAIL, placed)
+    timings["coverage_detail_s"] = time.perf_counter() - t0
     save_top_view(scene, pos, partial / "top_view.png", title=f"{final.name}: {len(pos)} probes")
     return probes
+
+
+def _write_coverage_detail(path: Path, placed) -> None:
+    """Each probe's part in the coverage (``placement.coverage_detail``: seen / unique counts and area
+    shares, the uncovered samples) as ``path``, an ``.npz`` the viewer reads without JAX. The placement's
+    own visibility pass gives it when it measured the final set; else one more pass (untimed by
+    ``place_s``: it is not the method's cost)."""
+    from .._core import write_atomic
+    from ..placement import coverage_detail
+
+    detail = placed.coverage_detail
+    if detail is None and placed.coverage_context is not None:
+        active = np.asarray(placed.probes.active, bool)
+        detail = coverage_detail(placed.coverage_context, np.asarray(placed.probes.pos_world)[active])
+    if detail is None:  # a method that measured no coverage context
+        return
+    arrays = {"format": np.asarray(COVERAGE_DETAIL_FORMAT), **detail.arrays()}
+    write_atomic(path, lambda f: np.savez_compressed(f, **arrays))
 
 
 def _check_tracer_fits(cfg: ExperimentConfig, scene, probes) -> None:

@@ -32,7 +32,7 @@ from ._typed import from_mapping
 
 
 @dataclass
-class SceneConfig:
+class SceneStage:
     """Which scene, its light and cameras, and a rigid offset of it (stability study: alignment relative
     to a grid).
 
@@ -212,9 +212,6 @@ EvalStage = _stage_schema(
     runner_set={"spp", "max_depth", "progress", "seed", *_TRACER_KEYS},
     defaults={},
 )
-# The names of the groups before they were built from the library settings.
-BakeConfig = BakeStage
-EvalConfig = EvalStage
 
 
 @dataclass
@@ -251,7 +248,7 @@ class ExperimentConfig:
     seed: int = 0
     progress: bool = True
     redo: str = "never"
-    scene: SceneConfig = field(default_factory=SceneConfig)
+    scene: SceneStage = field(default_factory=SceneStage)
     placer: PlacerConfig = field(default_factory=PlacerConfig)
     refiner: RefinerConfig = field(default_factory=RefinerConfig)
     bake: BakeStage = field(default_factory=BakeStage)
@@ -282,7 +279,7 @@ def _rekeyed(lib: type, values: dict, keys: dict[str, str]) -> Any:
 def bake_values(cfg: ExperimentConfig) -> dict:
     """The keyword arguments of ``probes.BakeConfig`` a run bakes with: the ``bake`` group's library keys,
     the run's ``progress``. ``probeplace evaluate`` takes its bake defaults from these of
-    ``ExperimentConfig()`` (the evaluate command, _evaluate_cli.py): one place for the defaults of both."""
+    ``ExperimentConfig()`` (the evaluate command, cli/_evaluate.py): one place for the defaults of both."""
     return {**_library_values(cfg.bake, _LibBakeConfig), "progress": cfg.progress}
 
 
@@ -290,7 +287,7 @@ def eval_values(cfg: ExperimentConfig) -> dict:
     """The keyword arguments of ``evaluate.EvalConfig`` a run evaluates with, but ``trace`` (built from
     ``eval.trace_engine``) and ``seed`` (the run's key): the ``eval`` group's library keys, the tracer's
     samples and depth, the run's ``progress``. ``probeplace evaluate`` takes its defaults from these of
-    ``ExperimentConfig()`` (the evaluate command, _evaluate_cli.py)."""
+    ``ExperimentConfig()`` (the evaluate command, cli/_evaluate.py)."""
     return {
         **_library_values(cfg.eval, _LibEvalConfig),
         "spp": cfg.tracer.spp,
@@ -401,7 +398,7 @@ def _check_placer(cfg: ExperimentConfig) -> None:
 
 
 def _check_outputs(cfg: ExperimentConfig) -> None:
-    from ..export._registry import FORMATS
+    from ..export import FORMATS
 
     if cfg.eval.enabled and not cfg.bake.enabled:
         _fail("eval.enabled", "needs baked probes (bake.enabled=true)", cfg.eval.enabled)
@@ -415,7 +412,7 @@ def _check_outputs(cfg: ExperimentConfig) -> None:
 def _check_sizes(cfg: ExperimentConfig, bake, ev) -> None:
     """Refuse, before any work, a bake batch or an evaluation image that would not fit in memory (the
     estimates ``bake_probes`` and the renderer make, for one probe and the run's image)."""
-    from .._core._errors import check_memory
+    from .._core import check_memory
     from ..evaluate import check_eval_memory
 
     if cfg.bake.enabled and bake.radiance_res:

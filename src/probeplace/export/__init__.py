@@ -6,11 +6,11 @@ usd (lossless round trips).
 """
 
 from .._core._io import read_exr as read_exr
+from .._core._probe_files import PROBE_SET_FORMAT as PROBE_SET_FORMAT
 from ._data import ExportError as ExportError
 from ._data import ExportProbes as ExportProbes
 from ._data import LightFieldMaps as LightFieldMaps
 from ._data import read_light_field_npz as read_light_field_npz
-from ._data import read_probes as read_probes
 from ._ddgi import write_ddgi as write_ddgi
 from ._engines import GODOT_FROM_GLTF as GODOT_FROM_GLTF
 from ._engines import UNITY_FROM_GLTF as UNITY_FROM_GLTF
@@ -26,6 +26,7 @@ from ._octa import texel_solid_angles as texel_solid_angles
 from ._registry import FORMATS as FORMATS
 from ._registry import export_probes as export_probes
 from ._registry import import_probes as import_probes
+from ._registry import read_probes as read_probes
 from ._sh import SH_CONVENTION as SH_CONVENTION
 from ._sh import project_radiance as project_radiance
 from ._sh import sh_irradiance as sh_irradiance

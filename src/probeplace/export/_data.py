@@ -3,7 +3,7 @@
 Exporters import no JAX (DESIGN.md: ``export/`` is NumPy only), so they take :class:`ExportProbes`
 rather than the ``ProbeSet`` / ``LightFieldProbes`` pytrees. Build one with
 :meth:`ExportProbes.from_probe_set` (duck-typed: anything with ``pos_world``/``active``/``method``),
-or read a file with :func:`read_probes` (a ProbeSet JSON file, a baked ``.npz``, or any file an
+or read a file with ``_registry.read_probes`` (a ProbeSet JSON file, a baked ``.npz``, or any file an
 importer of this package understands).
 """
 
@@ -13,18 +13,14 @@ import dataclasses
 import json
 import math
 import os
-import zipfile
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
 from .._core._errors import ProbeplaceError
+from .._core._probe_files import parse_probe_set, read_light_field_arrays
 from ._sh import project_radiance
-
-PROBE_SET_FORMAT = "probeplace.ProbeSet/1"  # same tag as _core._probe_io (which imports JAX)
-#: the tags of probes._io (version 2 packs the geometry maps, which export does not read)
-LIGHT_FIELD_FORMATS = ("probeplace.LightFieldProbes/2", "probeplace.LightFieldProbes/1")
 
 
 class ExportError(ProbeplaceError, ValueError):
@@ -144,50 +140,12 @@ class ExportProbes:
         )
 
 
-def read_probes(path: str | os.PathLike, *, sh_source: str = "total") -> ExportProbes:
-    """Read a probe set from any file probeplace understands.
-
-    * ``*.npz`` baked light-field probes (``probeplace.probes.save_probes``): positions, activity,
-      inside flags, SH L2 projected from the radiance maps and the maps for texture exports;
-    * a ProbeSet JSON file (``probeplace place``; format ``probeplace.ProbeSet/1``);
-    * any file an importer of this package reads (JSON export, glTF/GLB, Three.V8, USD).
-
-    Args:
-        path: the file.
-        sh_source: for ``.npz`` input, which light the SH hold: ``"total"`` (reflected + emitted/sky:
-            what a dynamic object at the probe receives; the default) or ``"reflected"``.
-
-    Raises:
-        ExportError: missing or unreadable file, unknown content.
-    """
-    path = Path(path)
-    if not path.is_file():
-        raise ExportError(f"probe file not found: {path}")
-    if path.suffix == ".npz":
-        return read_light_field_npz(path, sh_source=sh_source)
-    if path.suffix == ".json":
-        try:
-            doc = json.loads(path.read_text())
-        except (json.JSONDecodeError, UnicodeDecodeError) as e:
-            raise ExportError(f"{path}: not valid JSON ({e})") from None
-        if isinstance(doc, dict) and doc.get("format") == PROBE_SET_FORMAT:
-            return _probe_set_doc(path, doc)
-    from ._registry import import_probes  # lazy: the registry imports every format module
-
-    return import_probes(path)
-
-
 def _probe_set_doc(path: Path, doc: dict) -> ExportProbes:
     try:
-        pos = np.asarray(doc["positions"], np.float64).reshape(-1, 3)
-        active = np.asarray(doc.get("active", [True] * len(pos)), bool).reshape(-1)
-        units = float(doc.get("units_m", 1.0))
-    except (KeyError, ValueError, TypeError) as e:
-        raise ExportError(f"{path}: bad positions/active arrays ({e})") from None
-    if doc.get("up_axis", "+Y") != "+Y" or doc.get("handedness", "right") != "right":
-        raise ExportError(f"{path}: only right-handed +Y-up probe sets are supported")
-    meta = doc.get("metadata") or {}
-    return ExportProbes(pos, active, str(doc.get("method", "manual")), units, dict(meta))
+        ps = parse_probe_set(doc, path)
+    except ProbeplaceError as e:
+        raise ExportError(str(e)) from None
+    return ExportProbes(ps.positions, ps.active, ps.method, ps.units_m, dict(doc.get("metadata") or {}))
 
 
 def read_light_field_npz(path: str | os.PathLike, *, sh_source: str = "total") -> ExportProbes:
@@ -195,14 +153,11 @@ def read_light_field_npz(path: str | os.PathLike, *, sh_source: str = "total") -
     path = Path(path)
     if sh_source not in ("total", "reflected"):
         raise ExportError(f"sh_source must be 'total' or 'reflected', got {sh_source!r}")
-    try:
-        with np.load(path, allow_pickle=False) as z:
-            data = {k: z[k] for k in z.files}
-    except (zipfile.BadZipFile, ValueError, OSError) as e:
-        raise ExportError(f"{path}: not a readable .npz probe file ({e})") from None
-    if str(data.get("format", "")) not in LIGHT_FIELD_FORMATS:
-        raise ExportError(f"{path}: not a probeplace light-field probe file ({LIGHT_FIELD_FORMATS[0]})")
     needed = ("pos_world", "active", "radiance", "emission", "irradiance", "moments", "far")
+    try:  # the geometry maps (gigabytes at 512²) stay on disk
+        data = read_light_field_arrays(path, (*needed, "inside"))
+    except ProbeplaceError as e:
+        raise ExportError(str(e)) from None
     missing = [k for k in needed if k not in data]
     if missing:
         raise ExportError(f"{path}: probe file lacks {missing}")

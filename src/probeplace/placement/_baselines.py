@@ -161,10 +161,20 @@ def place_grid(scene: Scene, request: PlaceRequest, options: GridOptions) -> Pla
         "n_disabled": r.n_disabled,
         "n_relocated": r.n_relocated,
     }
-    pos = np.asarray(r.probes.pos_world)[np.asarray(r.probes.active)]
+    active = np.asarray(r.probes.active)
+    pos = np.asarray(r.probes.pos_world)[active]
     valid = options.inside != "keep"  # "keep" shows the classic failure: no relocation either
     return finish_lattice(
-        scene, request, "grid", pos, sdf=sdf, timings=timings, t_all=t_all, info=info, valid=valid
+        scene,
+        request,
+        "grid",
+        pos,
+        sdf=sdf,
+        timings=timings,
+        t_all=t_all,
+        info=info,
+        valid=valid,
+        relocated=np.asarray(r.relocated, bool)[active],
     )
 
 

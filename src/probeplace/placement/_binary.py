@@ -9,6 +9,7 @@ reported in metadata, the automatic budget's search and a refinement's acceptanc
 from __future__ import annotations
 
 import math
+from dataclasses import dataclass
 
 import jax.numpy as jnp
 import numpy as np
@@ -131,6 +132,84 @@ def binary_coverage(problem: PlacementProblem, vis: np.ndarray, active: np.ndarr
     a = np.asarray(problem.area, np.float64) * cov
     seen = vis.any(axis=0) if len(vis) else np.zeros(len(a), bool)
     return float((a * seen).sum() / max(a.sum(), 1e-300))
+
+
+@dataclass(frozen=True, eq=False)
+class CoverageDetail:
+    """Each probe's part in the binary coverage of a set (:func:`coverage_counts`), over the *coverable*
+    samples of the coverage problem (the samples ``binary_coverage`` weighs; the others no probe in the
+    box can see and count nowhere here).
+
+    Attributes:
+        seen: (n_probes,) int64, how many coverable samples each probe sees.
+        unique: (n_probes,) int64, how many coverable samples only that probe sees.
+        seen_area: (n_probes,) float64, the coverable area each probe sees, as a share of all of it.
+        unique_area: (n_probes,) float64, the coverable area only that probe sees, as a share of all of it.
+        n_multiple: coverable samples seen by two probes or more.
+        uncovered: (n_uncovered,) int64 indices of the coverable samples no probe sees.
+        uncovered_pos: (n_uncovered, 3) float32 their positions, world frame, scene units.
+        uncovered_normal: (n_uncovered, 3) float32 their unit normals.
+        n_samples: samples of the coverage problem (coverable or not).
+        n_coverable: its coverable samples; ``unique.sum() + n_multiple + len(uncovered) == n_coverable``.
+        coverage: share of the coverable area seen by at least one probe (``binary_coverage``).
+    """
+
+    seen: np.ndarray
+    unique: np.ndarray
+    seen_area: np.ndarray
+    unique_area: np.ndarray
+    n_multiple: int
+    uncovered: np.ndarray
+    uncovered_pos: np.ndarray
+    uncovered_normal: np.ndarray
+    n_samples: int
+    n_coverable: int
+    coverage: float
+
+    def arrays(self) -> dict[str, np.ndarray]:
+        """The detail as named arrays (``np.savez``; scalars as 0-d arrays): the keys are the attribute
+        names (docs/placement.md "Coverage detail")."""
+        return {
+            "seen": self.seen,
+            "unique": self.unique,
+            "seen_area": self.seen_area,
+            "unique_area": self.unique_area,
+            "n_multiple": np.asarray(self.n_multiple, np.int64),
+            "uncovered": self.uncovered,
+            "uncovered_pos": self.uncovered_pos,
+            "uncovered_normal": self.uncovered_normal,
+            "n_samples": np.asarray(self.n_samples, np.int64),
+            "n_coverable": np.asarray(self.n_coverable, np.int64),
+            "coverage": np.asarray(self.coverage, np.float64),
+        }
+
+
+def coverage_counts(problem: PlacementProblem, vis: np.ndarray) -> CoverageDetail:
+    """Per-probe seen / unique counts and the uncovered samples of binary visibility ``vis``
+    ((n_probes, n_samples) from :func:`binary_visibility`: the same rows ``binary_coverage`` reads)."""
+    vis = np.asarray(vis, bool)
+    cov = np.asarray(problem.coverable, bool)
+    if vis.ndim != 2 or vis.shape[1] != len(cov):
+        raise ValueError(f"vis must be (n_probes, {len(cov)}), got {vis.shape}")
+    area = np.asarray(problem.area, np.float64) * cov
+    total = max(float(area.sum()), 1e-300)
+    v = vis & cov[None]
+    count = v.sum(axis=0)
+    only = v & (count == 1)[None]
+    none = np.flatnonzero(cov & (count == 0))
+    return CoverageDetail(
+        seen=v.sum(axis=1).astype(np.int64),
+        unique=only.sum(axis=1).astype(np.int64),
+        seen_area=(v @ area) / total,
+        unique_area=(only @ area) / total,
+        n_multiple=int((count >= 2).sum()),
+        uncovered=none.astype(np.int64),
+        uncovered_pos=np.asarray(problem.position, np.float32)[none].reshape(-1, 3),
+        uncovered_normal=np.asarray(problem.normal, np.float32)[none].reshape(-1, 3),
+        n_samples=len(cov),
+        n_coverable=int(cov.sum()),
+        coverage=binary_coverage(problem, vis),
+    )
 
 
 def wang_fitness_binary(problem: PlacementProblem, pos, vis: np.ndarray | None = None) -> float:

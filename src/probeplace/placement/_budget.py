@@ -29,8 +29,7 @@ from dataclasses import dataclass
 import numpy as np
 from scipy import spatial
 
-from .._core import ConfigError
-from .._core._errors import check_memory
+from .._core import ConfigError, check_memory
 from .._core._sizes import parse_bytes as parse_bytes  # re-exported: placement's public API
 
 
@@ -75,6 +74,8 @@ class BudgetFit:
         n_trimmed: probes removed (least unique coverage first).
         n_filled: probes added (farthest point first).
         short: probes still missing (the pool ran out; 0 normally).
+        kept: indices (into the method's set) of the probes kept, in order: they are the first
+            ``len(kept)`` rows of ``pos``; the rows after them are the filled ones.
     """
 
     pos: np.ndarray
@@ -82,6 +83,13 @@ class BudgetFit:
     n_trimmed: int
     n_filled: int
     short: int = 0
+    kept: np.ndarray | None = None
+
+    @property
+    def filled(self) -> np.ndarray:
+        """Indices (into ``pos``) of the filled probes."""
+        n_kept = self.n_before - self.n_trimmed
+        return np.arange(n_kept, len(self.pos), dtype=np.int64)
 
     def record(self) -> dict:
         """The JSON record for the metadata (``budget_fit``)."""
@@ -158,10 +166,10 @@ def fit_to_budget(pos: np.ndarray, budget: int, *, visibility, area: np.ndarray,
     if n > budget:
         drop = trim_order(visibility(pos), np.asarray(area, np.float64), pos, n - budget)
         keep = np.setdiff1d(np.arange(n), drop)
-        return BudgetFit(pos[keep], n, n - budget, 0)
+        return BudgetFit(pos[keep], n, n - budget, 0, kept=keep)
     if n < budget:
         pool = np.asarray(pool_fn(budget - n), np.float32).reshape(-1, 3)
         add = fill_order(pos, pool, budget - n)
         out = np.concatenate([pos, pool[add]])
-        return BudgetFit(out, n, 0, len(add), short=budget - len(out))
-    return BudgetFit(pos, n, 0, 0)
+        return BudgetFit(out, n, 0, len(add), short=budget - len(out), kept=np.arange(n))
+    return BudgetFit(pos, n, 0, 0, kept=np.arange(n))

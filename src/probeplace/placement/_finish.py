@@ -23,7 +23,7 @@ import numpy as np
 
 from .._core import ConfigError, ProbeSet, Scene, scene_box, stream
 from ..geometry import AbstractRayCaster
-from ._binary import binary_coverage, binary_visibility
+from ._binary import CoverageDetail, binary_coverage, binary_visibility, coverage_counts
 from ._budget import fit_to_budget
 from ._fitness import FitnessConfig, PlacementProblem, make_problem
 from ._reach import reachable_space, view_positions
@@ -57,6 +57,21 @@ class CoverageContext:
     @property
     def visibility_name(self) -> str:
         return "sdf" if self.caster is None else type(self.caster).__name__
+
+    def measure(self, pos) -> tuple[float, CoverageDetail]:
+        """(coverage, :class:`CoverageDetail`) of ``pos`` from one visibility pass."""
+        detail = coverage_counts(self.problem, self.visibility(pos))
+        return (detail.coverage if len(detail.seen) else 0.0), detail
+
+
+def coverage_detail(cov: CoverageContext, pos) -> CoverageDetail:
+    """Each probe's part in the coverage of ``pos`` as ``cov`` measures it (:func:`coverage_context`: the
+    run's coverage samples and caster, so the counts add up to the coverage the placement reported): per
+    probe the coverable samples it sees and those only it sees (counts and area shares), and the coverable
+    samples no probe sees (indices, positions, normals): one visibility pass
+    (:meth:`CoverageContext.measure`).
+    """
+    return cov.measure(np.asarray(pos, np.float32).reshape(-1, 3))[1]
 
 
 def coverage_context(scene: Scene, request: PlaceRequest, sdf) -> CoverageContext:
@@ -100,20 +115,30 @@ def make_usable(
     cov: CoverageContext,
     spare: np.ndarray | None = None,
     valid: bool = True,
+    relocated: np.ndarray | None = None,
 ) -> tuple[np.ndarray, dict]:
     """Steps 1–2 of the module docstring: ``pos`` made valid, then trimmed or filled to the budget (an
     integer budget; ``"auto"`` keeps the count). ``spare``: the method's unchosen candidates, offered to
     the fill before the valid-space lattice. ``valid=False`` (the grid's ``inside="keep"``, kept to show
-    the classic failure) skips step 1. Returns (positions, record for the metadata)."""
+    the classic failure) skips step 1. ``relocated``: (n,) bool, probes of ``pos`` the method itself
+    already moved out of geometry (the grid's ``inside="relocate"``). Returns (positions, record for the
+    metadata). The record names the returned probes that moved or were added (:func:`_which_record`)."""
     pos = np.asarray(pos, np.float32).reshape(-1, 3)
     clearance, region, reach, lo, hi = valid_settings(scene, request, sdf, with_reach=valid)
     record: dict = {}
+    moved_out = np.zeros(len(pos), bool) if relocated is None else np.asarray(relocated, bool).copy()
+    if moved_out.shape != (len(pos),):
+        raise ValueError(f"relocated must be ({len(pos)},), got {moved_out.shape}")
+    projected = np.zeros(len(pos), bool)
     if valid:
         v = make_valid(sdf, pos, clearance=clearance, region=region, lo=lo, hi=hi, reach=reach)
-        pos = np.asarray(v.pos, np.float32)[~np.asarray(v.dropped)]
+        keep = ~np.asarray(v.dropped)
+        pos = np.asarray(v.pos, np.float32)[keep]
+        moved_out = (moved_out | np.asarray(v.relocated, bool))[keep]
+        projected = np.asarray(v.projected, bool)[keep]
         record["valid_space"] = v.record()
     if request.budget == "auto":
-        return pos, record
+        return pos, {**record, **_which_record(moved_out, projected, np.zeros(0, np.int64))}
 
     def pool(n_needed: int) -> np.ndarray:
         extra = _usable_spare(spare, sdf, clearance, region, lo, hi, reach) if valid else np.zeros((0, 3))
@@ -132,7 +157,22 @@ def make_usable(
             f"{len(fit.pos)} probes at the finest fill lattice; lower the budget or the clearance"
         )
     record["budget_fit"] = fit.record()
-    return fit.pos, record
+    kept = np.arange(len(pos)) if fit.kept is None else fit.kept
+    pad = len(fit.pos) - len(kept)  # the filled rows, after the kept ones
+    moved_out = np.concatenate([moved_out[kept], np.zeros(pad, bool)])
+    projected = np.concatenate([projected[kept], np.zeros(pad, bool)])
+    return fit.pos, {**record, **_which_record(moved_out, projected, fit.filled)}
+
+
+def _which_record(relocated: np.ndarray, projected: np.ndarray, filled: np.ndarray) -> dict:
+    """Which of the returned probes (indices into the final set, the order of ``probes.json``) were
+    relocated out of geometry, projected into the placement region, or filled to the budget. A refined set
+    keeps its indices: the lists name where each probe came from before the refiner moved it."""
+    return {
+        "relocated_probes": np.flatnonzero(relocated).tolist(),
+        "projected_probes": np.flatnonzero(projected).tolist(),
+        "filled_probes": np.asarray(filled, np.int64).tolist(),
+    }
 
 
 def valid_settings(scene: Scene, request: PlaceRequest, sdf, *, with_reach: bool = True):
@@ -210,13 +250,16 @@ def finish_lattice(
     info: dict,
     spare: np.ndarray | None = None,
     valid: bool = True,
+    relocated: np.ndarray | None = None,
 ) -> PlaceResult:
     """Steps 1–4 of the module docstring for a method that lays its positions without a search (Vardis
-    2021 §4's "global optimiser as a last step" is step 4)."""
+    2021 §4's "global optimiser as a last step" is step 4). ``relocated``: as :func:`make_usable`'s."""
     t0 = time.perf_counter()
     cov = coverage_context(scene, request, sdf)
-    pos, record = make_usable(scene, request, pos, sdf=sdf, cov=cov, spare=spare, valid=valid)
-    coverage = cov.coverage(pos)
+    pos, record = make_usable(
+        scene, request, pos, sdf=sdf, cov=cov, spare=spare, valid=valid, relocated=relocated
+    )
+    coverage, detail = cov.measure(pos)
     timings["coverage_s"] = time.perf_counter() - t0
     refined, status = False, None
     if request.refiner is not None and len(pos):
@@ -232,7 +275,7 @@ def finish_lattice(
         )
         record.update(rec)
         if refined:
-            coverage = cov.coverage(pos)
+            coverage, detail = cov.measure(pos)
         timings["refine_s"] = time.perf_counter() - t0
     timings["total_s"] = time.perf_counter() - t_all
     return PlaceResult(
@@ -245,4 +288,6 @@ def finish_lattice(
         refine_status=status,
         refined=refined,
         info={**info, **record},
+        coverage_detail=detail,
+        coverage_context=cov,
     )

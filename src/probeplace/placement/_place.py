@@ -125,7 +125,8 @@ def _place_seeded(
     t0 = time.perf_counter()
     pos, record = make_usable(scene, r, res.pos, sdf=grid, cov=cov, spare=cand)
     changed = pos.shape != res.pos.shape or not np.array_equal(pos, res.pos)
-    coverage = cov.coverage(pos) if changed else res.coverage
+    # the set auto_budget measured, or one visibility pass that also gives each probe's part
+    coverage, detail = cov.measure(pos) if changed else (res.coverage, None)
     timings["usable_s"] = time.perf_counter() - t0
     timings["total_s"] = time.perf_counter() - t_all
     clear = probe_clearance(problem, pos)
@@ -148,6 +149,8 @@ def _place_seeded(
             "coverage_curve": res.curve,
             **record,
         },
+        coverage_detail=detail,
+        coverage_context=cov,
     )
 
 

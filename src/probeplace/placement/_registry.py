@@ -88,7 +88,13 @@ class PlaceResult:
         target_reached: whether the automatic search reached ``request.target`` (``None``: no search).
         min_probe_clearance: smallest distance from a probe to a surface (``None``: not measured).
         info: the method's own record (JSON-able): its resolved options or fitness config under
-            ``config``, and its statistics.
+            ``config``, and its statistics; ``relocated_probes``, ``projected_probes`` and
+            ``filled_probes`` name which probes (indices into ``probes``) the common end moved or added.
+        coverage_detail: each probe's part in ``coverage`` (``_binary.CoverageDetail``) when the method
+            measured it from the final set's visibility, else None (``coverage_detail`` measures it from
+            ``coverage_context`` then).
+        coverage_context: how ``coverage`` was measured (``_finish.CoverageContext``), or None. Neither of
+            the last two is part of :attr:`metadata`.
     """
 
     probes: ProbeSet
@@ -102,6 +108,8 @@ class PlaceResult:
     target_reached: bool | None = None
     min_probe_clearance: float | None = None
     info: dict[str, Any] = field(default_factory=dict)
+    coverage_detail: Any = field(default=None, repr=False, compare=False)
+    coverage_context: Any = field(default=None, repr=False, compare=False)
 
     @property
     def n_probes(self) -> int:

@@ -64,7 +64,7 @@ def check_vardis_light(scene: Scene) -> None:
     Raises:
         SceneError: one line naming the method, the scene and the sidecar keys that add light.
     """
-    from ..scene._sidecar import no_light_hint
+    from ..scene import no_light_hint
 
     if not scene.has_light:
         raise SceneError(

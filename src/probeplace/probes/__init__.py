@@ -9,6 +9,8 @@ from ._bake import RadianceFn as RadianceFn
 from ._bake import bake_depth_for as bake_depth_for
 from ._bake import bake_probes as bake_probes
 from ._bake import check_bake_settings as check_bake_settings
+from ._bake import check_probe_scene as check_probe_scene
+from ._bake import check_probes_in_scene as check_probes_in_scene
 from ._bake import default_radiance_res as default_radiance_res
 from ._bake import map_resolutions as map_resolutions
 from ._bake import pad_probes as pad_probes
@@ -17,6 +19,7 @@ from ._bake import path_traced_radiance as path_traced_radiance
 from ._bake import probe_bytes as probe_bytes
 from ._bake_samples import BakeSamples as BakeSamples
 from ._bake_samples import choose_bake_spp as choose_bake_spp
+from ._engine import trace_light_field as trace_light_field
 from ._filter import distance_moments as distance_moments
 from ._filter import irradiance_map as irradiance_map
 
@@ -25,18 +28,21 @@ from ._index import GridIndex as GridIndex
 from ._index import VoxelIndex as VoxelIndex
 from ._index import grid_index as grid_index
 from ._index import voxel_index as voxel_index
+from ._inside import face_normals as face_normals
+from ._inside import host_closest_hit as host_closest_hit
+from ._inside import points_in_solid as points_in_solid
 from ._inside import probes_inside as probes_inside
 from ._io import load_probes as load_probes
 from ._io import save_probes as save_probes
 from ._plot import save_contact_sheet as save_contact_sheet
 from ._seen import origins_seen as origins_seen
+from ._status import TraceStatus as TraceStatus
 from ._trace import LightFieldTracer as LightFieldTracer
 from ._trace import TraceConfig as TraceConfig
 from ._trace import TraceResult as TraceResult
 from ._trace import bound_table as bound_table
 from ._trace import check_tracer_memory as check_tracer_memory
 from ._trace import make_tracer as make_tracer
-from ._trace import trace_light_field as trace_light_field
 from ._trace import trace_probe as trace_probe
 from ._trace import trace_ray as trace_ray
 from ._trace import tracer_bytes as tracer_bytes
@@ -49,6 +55,7 @@ from ._shade import SHADINGS as SHADINGS
 from ._shade import default_index as default_index
 from ._shade import diffuse_irradiance as diffuse_irradiance
 from ._shade import glossy_radiance as glossy_radiance
+from ._shade import irradiance_weights as irradiance_weights
 from ._shade import sh_coefficients as sh_coefficients
 from ._shade import sh_irradiance as sh_irradiance
 from ._shade import shade_irradiance as shade_irradiance

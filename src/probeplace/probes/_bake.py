@@ -65,6 +65,7 @@ from .._core import (
     Scene,
     SceneError,
     add_border,
+    check_memory,
     check_target,
     dot3,
     jittered_texel_directions,
@@ -73,7 +74,6 @@ from .._core import (
     scene_box,
     texel_directions,
 )
-from .._core._errors import check_memory
 from .._core._progress import progress_bar
 from ._filter import distance_moments, irradiance_map
 from ._inside import probes_inside

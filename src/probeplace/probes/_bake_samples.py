@@ -51,12 +51,12 @@ from .._core import (
     ProbeSet,
     Scene,
     check_count,
+    check_memory,
     is_auto,
     json_number,
     mean_and_se,
     smallest_count,
 )
-from .._core._errors import check_memory
 from ._bake import (
     BakeConfig,
     PathTracedRadiance,

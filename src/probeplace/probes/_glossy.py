@@ -67,7 +67,9 @@ from .._core import (
     texel_of_direction,
     texel_solid_angles,
 )
-from ._trace import RAY_HIT, RAY_MISS, LightFieldTracer, trace_light_field
+from ._engine import trace_light_field
+from ._status import TraceStatus
+from ._trace import LightFieldTracer
 
 GLOSSY_FILTERS = ("texel", "bilinear", "mip", "depth_aware")
 #: The filter of every glossy read unless one is chosen (the evaluation's too, ``EvalConfig.glossy_filter``):
@@ -223,7 +225,7 @@ def _dist2(
 @eqx.filter_jit
 def _glossy_chunk(tr: LightFieldTracer, levels, o, d, cone, sky, bias, filt: str, include_emission: bool):
     res = trace_light_field(tr, o, d)
-    hit = res.status == RAY_HIT
+    hit = res.status == TraceStatus.HIT
     t_free = jnp.where(jnp.isfinite(res.t), res.t, 0.0)
     x = o + t_free[:, None] * d
     # Unresolved: the usable probe nearest to the last free point, read along d (distant light).
@@ -240,9 +242,9 @@ def _glossy_chunk(tr: LightFieldTracer, levels, o, d, cone, sky, bias, filt: str
     r_hit = jnp.where(hit, r, jnp.inf)  # an unresolved ray's fallback read has no hit to match
     val = jax.vmap(lambda pi, di, li, ri: _read(levels, filt, pi, di, li, ri))(p, direction, lod, r_hit)
     miss = jnp.broadcast_to(sky[None, :], val.shape) if include_emission else jnp.zeros_like(val)
-    out = jnp.where((res.status == RAY_MISS)[:, None], miss, val)
-    probe = jnp.where(res.status == RAY_MISS, -1, p)
-    return GlossyResult(out, res.status, res.t, probe, jnp.where(res.status == RAY_MISS, 0.0, lod))
+    out = jnp.where((res.status == TraceStatus.MISS)[:, None], miss, val)
+    probe = jnp.where(res.status == TraceStatus.MISS, -1, p)
+    return GlossyResult(out, res.status, res.t, probe, jnp.where(res.status == TraceStatus.MISS, 0.0, lod))
 
 
 def _sees(lf: LightFieldProbes, p, x, n_front, margin):

@@ -11,17 +11,14 @@ from __future__ import annotations
 
 import json
 import os
-import zipfile
 from pathlib import Path
 
 import jax.numpy as jnp
 import numpy as np
 
 from .._core import BakeSettings, LightFieldProbes, ProbeplaceError, pack_normal, write_atomic
+from .._core._probe_files import LIGHT_FIELD_FORMAT, LIGHT_FIELD_FORMAT_V1, read_light_field_arrays
 
-_FORMAT = "probeplace.LightFieldProbes/2"  # the maps' layout; export._data reads the same tag
-#: Version 1 stored float32 normal maps and distance MIP chains; it still loads (normals packed here).
-_FORMAT_V1 = "probeplace.LightFieldProbes/1"
 _MAPS = (
     "pos_world",
     "active",
@@ -40,7 +37,7 @@ def save_probes(path: str | os.PathLike, probes: LightFieldProbes) -> Path:
     path = Path(path)
     arrays = {name: np.asarray(getattr(probes, name)) for name in _MAPS}
     arrays["far"] = np.asarray(probes.far)
-    arrays["format"] = np.asarray(_FORMAT)
+    arrays["format"] = np.asarray(LIGHT_FIELD_FORMAT)
     if probes.backface is not None:
         arrays["backface"] = np.asarray(probes.backface)
     if probes.bake is not None:
@@ -54,18 +51,9 @@ def load_probes(path: str | os.PathLike) -> LightFieldProbes:
     Raises:
         ProbeplaceError: missing file, not an npz, not a probe file, or unreadable bake settings.
     """
-    path = Path(path)
-    if not path.is_file():
-        raise ProbeplaceError(f"probe file not found: {path}")
-    try:
-        with np.load(path, allow_pickle=False) as z:
-            data = {k: z[k] for k in z.files}
-    except (zipfile.BadZipFile, ValueError, OSError) as e:
-        raise ProbeplaceError(f"{path}: not a readable .npz probe file ({e})") from None
-    fmt = str(data.get("format", ""))
-    if fmt not in (_FORMAT, _FORMAT_V1):
-        raise ProbeplaceError(f"{path}: not a probeplace light-field probe file (format {_FORMAT} expected)")
-    if fmt == _FORMAT_V1 and "normal" in data:
+    data = read_light_field_arrays(path)
+    fmt = str(data["format"])
+    if fmt == LIGHT_FIELD_FORMAT_V1 and "normal" in data:
         data["normal16"] = np.asarray(pack_normal(data.pop("normal")))
     missing = [k for k in (*_MAPS, "far") if k not in data]
     if missing:

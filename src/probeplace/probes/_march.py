@@ -12,10 +12,8 @@ import jax.numpy as jnp
 from jaxtyping import Array, Float, Int
 
 from .._core import norm3
+from ._status import TraceStatus
 from ._surfels import NEIGHBOURS, crease
-
-#: Status codes of a single-probe trace.
-MISS, HIT, UNKNOWN = 0, 1, 2
 
 
 def _levels(tr) -> tuple[int, int]:
@@ -182,7 +180,9 @@ def _surfel_test(tr, p, pc: _Piece, ij, t, t_exit):
         far_off = _edge_on(tr, xs[0], o, d, t_amb) | jnp.any(hit & met_far)
         blocks = blocks | (all_hit & far_off)
         all_hit = all_hit & ~far_off
-    several = jnp.where(all_hit, HIT, jnp.where(jnp.any(blocks), UNKNOWN, MISS))
+    several = jnp.where(
+        all_hit, TraceStatus.HIT, jnp.where(jnp.any(blocks), TraceStatus.UNKNOWN, TraceStatus.MISS)
+    )
     # One surface: its own surfel decides a hit; a concave-crease partner's plane (``_partners``) crossed
     # first, or the ray starting deep behind either, is unknown from the cell's entry — the crease may be
     # a corner (the partner is the surface there) or a silhouette taken for one (it is not): another probe
@@ -197,10 +197,10 @@ def _surfel_test(tr, p, pc: _Piece, ij, t, t_exit):
         edge_on = _edge_on(tr, xs[0], o, d, t_hit[0])
         blocked = blocked | (own_first & edge_on)
         own_first = own_first & ~edge_on
-    one = jnp.where(own_first, HIT, jnp.where(blocked, UNKNOWN, MISS))
+    one = jnp.where(own_first, TraceStatus.HIT, jnp.where(blocked, TraceStatus.UNKNOWN, TraceStatus.MISS))
     status = jnp.where(ambiguous, several, one).astype(jnp.int32)
     texel = jnp.stack([rows[0], cols[0]]) - 1
-    return status, jnp.where(ambiguous, t_amb, jnp.where(one == HIT, t_hit[0], t)), texel
+    return status, jnp.where(ambiguous, t_amb, jnp.where(one == TraceStatus.HIT, t_hit[0], t)), texel
 
 
 def _next_cell(tr, pc: _Piece, level, ij, ij_adv, advance, t, at_start):
@@ -252,23 +252,25 @@ def _march_step(tr, p, pc: _Piece, tb, span, t_min, c):
     deep = ~at_fine & (rho_t > tr.upper(tr.row[p], flat))
     fine, t_hit, fine_texel = _surfel_test(tr, p, pc, ij, t, t_exit)
     fine_texel = jnp.where(at_fine, fine_texel, _cell_at(pc, t, jnp.int32(m)) // tr.sub)
-    status = jnp.where(deep, jnp.int32(UNKNOWN), jnp.where(at_fine, fine, jnp.int32(MISS)))
-    advance = jnp.where(at_fine, status == MISS, skip & ~deep)
+    status = jnp.where(
+        deep, jnp.int32(TraceStatus.UNKNOWN), jnp.where(at_fine, fine, jnp.int32(TraceStatus.MISS))
+    )
+    advance = jnp.where(at_fine, status == TraceStatus.MISS, skip & ~deep)
     step = jnp.where(step_u, jnp.array([0, 1], jnp.int32), jnp.array([1, 0], jnp.int32))
     ij_adv = ij + step * jnp.where(step_u, pc.du[0], pc.du[1]).astype(jnp.int32)
     level_new, ij_new = _next_cell(tr, pc, level, ij, ij_adv, advance, t, t <= t_min)
-    t_new = jnp.where(advance, t_exit, jnp.where(status == HIT, t_hit, t))
-    texel_new = jnp.where(status != MISS, fine_texel, texel)
+    t_new = jnp.where(advance, t_exit, jnp.where(status == TraceStatus.HIT, t_hit, t))
+    texel_new = jnp.where(status != TraceStatus.MISS, fine_texel, texel)
     # Left the face (numerically) before tb: end the piece.
     out = jnp.any((ij_new < 0) | (ij_new >= jnp.right_shift(jnp.int32(m), level_new)))
-    t_new = jnp.where(out & (status == MISS), tb, t_new)
+    t_new = jnp.where(out & (status == TraceStatus.MISS), tb, t_new)
     return status, t_new, steps + 1, texel_new, level_new, ij_new
 
 
 def _segment_go(tr, status, ta, tb):
     """Whether an octant piece [ta, tb] is marched at all: the probe's trace is still free (MISS) and the
     piece is not a numerically empty sliver."""
-    return (status == MISS) & (tb - ta > 1e-6 * tr.t_far)
+    return (status == TraceStatus.MISS) & (tb - ta > 1e-6 * tr.t_far)
 
 
 def _segment_start(tr, o, d, ta, tb, state):
@@ -301,14 +303,16 @@ def _segment_start(tr, o, d, ta, tb, state):
 def _segment_running(go, tb, seg_steps, c):
     """Whether the march of a piece takes another step (``c``: the march carry)."""
     status, t, steps = c[0], c[1], c[2]
-    return go & (status == MISS) & (t < tb) & (steps < seg_steps)
+    return go & (status == TraceStatus.MISS) & (t < tb) & (steps < seg_steps)
 
 
 def _segment_end(go, tb, seg_steps, c, state):
     """The single-probe state after the march of a piece stopped (``state``: the state it started from)."""
     status, t, steps, texel = c[:4]
     # Running out of steps inside the piece is "unknown" (the ray is not known to be free beyond t).
-    status = jnp.where(go & (status == MISS) & (t < tb) & (steps >= seg_steps), UNKNOWN, status)
+    status = jnp.where(
+        go & (status == TraceStatus.MISS) & (t < tb) & (steps >= seg_steps), TraceStatus.UNKNOWN, status
+    )
     t = jnp.where(go, t, state[1])
     return status, t, steps, texel
 
@@ -341,7 +345,7 @@ def _probe_pieces(tr, p, origin, direction, t_min, t_max):
 
 def _probe_state(t_min):
     """A single-probe trace's state before its first piece: (status MISS, t, steps, texel)."""
-    return jnp.int32(MISS), t_min, jnp.int32(0), jnp.zeros(2, jnp.int32)
+    return jnp.int32(TraceStatus.MISS), t_min, jnp.int32(0), jnp.zeros(2, jnp.int32)
 
 
 def trace_probe(
@@ -370,5 +374,5 @@ def trace_probe(
         return _trace_segment(tr, p, o, direction, bounds[k], bounds[k + 1], t_min, st)
 
     status, t, steps, texel = jax.lax.fori_loop(0, 4, seg, _probe_state(t_min))
-    t = jnp.where(status == MISS, t_max, t)
+    t = jnp.where(status == TraceStatus.MISS, t_max, t)
     return status, t, steps, texel

@@ -51,7 +51,6 @@ from .._core import (
 from .._core._sh import COSINE_LOBE, sh_basis
 from ._glossy import glossy_radiance
 from ._index import GridIndex, VoxelIndex, grid_index, voxel_index
-from ._trace import RAY_HIT, RAY_MISS, RAY_UNRESOLVED
 
 SHADINGS = ("lightfield", "irradiance", "sh")
 _CHUNK = 1 << 14
@@ -117,8 +116,9 @@ def _chebyshev(moments: Float[Array, "mb mb 2"], v: Float[Array, "3"]) -> Float[
     return jnp.where(r > mean, jnp.maximum(cheb**3, 0.05), 1.0)
 
 
-def _blend_one(lf_pos, usable, values, moments, index, x, n, bias, visibility: bool):
-    """Weighted blend of per-probe values (k, c) at one point (single instance; vmapped)."""
+def _weights_one(lf_pos, usable, moments, index, x, n, bias, visibility: bool):
+    """(candidate probes (k,), their unnormalised weights (k,), 0 where unusable; the nearest usable probe)
+    at one point: the weights :func:`_blend_one` blends with (single instance; vmapped)."""
     ids, w = _candidates(index, lf_pos, x)
     ok = (ids >= 0) & usable[jnp.maximum(ids, 0)]
     p = jnp.maximum(ids, 0)
@@ -132,14 +132,36 @@ def _blend_one(lf_pos, usable, values, moments, index, x, n, bias, visibility: b
         w_vis = jnp.where(w_vis < 0.2, w_vis * w_vis * w_vis / 0.04, w_vis)
         w = w * w_vis
     w = jnp.where(ok, w, 0.0)
-    vals = values(p, n)  # (k, c)
-    tot = jnp.sum(w)
-    blended = jnp.sum(w[:, None] * vals, axis=0) / jnp.where(tot > 0, tot, 1.0)
     # No usable probe around x: the nearest usable probe (any set).
     d2 = jnp.where(usable, jnp.sum((lf_pos - x[None, :]) ** 2, axis=-1), jnp.inf)
     near = jnp.argmin(d2).astype(jnp.int32)
+    return p, w, near
+
+
+def _blend_one(lf_pos, usable, values, moments, index, x, n, bias, visibility: bool):
+    """Weighted blend of per-probe values (k, c) at one point (single instance; vmapped)."""
+    p, w, near = _weights_one(lf_pos, usable, moments, index, x, n, bias, visibility)
+    vals = values(p, n)  # (k, c)
+    tot = jnp.sum(w)
+    blended = jnp.sum(w[:, None] * vals, axis=0) / jnp.where(tot > 0, tot, 1.0)
     fallback = values(near[None], n)[0]
     return jnp.where(tot > 0, blended, fallback)
+
+
+@eqx.filter_jit
+def _weights_chunk(lf: LightFieldProbes, index, x, n, bias, visibility: bool):
+    usable = lf.active & ~lf.inside
+
+    def one(xi, ni):
+        p, w, near = _weights_one(lf.pos_world, usable, lf.moments, index, xi, ni, bias, visibility)
+        tot = jnp.sum(w)
+        # normalised as the blend divides; where every weight is 0 the nearest usable probe alone
+        w = jnp.where(tot > 0, w / jnp.where(tot > 0, tot, 1.0), 0.0)
+        ids = jnp.concatenate([jnp.where(w > 0, p, -1), jnp.where(tot > 0, -1, near)[None]])
+        w = jnp.concatenate([w, jnp.where(tot > 0, 0.0, 1.0)[None].astype(w.dtype)])
+        return ids, w
+
+    return jax.vmap(one)(x, n)
 
 
 @eqx.filter_jit
@@ -166,22 +188,24 @@ def _sh_chunk(lf: LightFieldProbes, coeffs, index, x, n):
     return jax.vmap(fn)(x, n)
 
 
-def _chunked(fn, points, normals, chunk: int):
-    """Run ``fn(x, n)`` over fixed-size chunks (the last one padded) so every chunk reuses one compile."""
+def _chunked(fn, points, normals, chunk: int, empty=None):
+    """Run ``fn(x, n)`` over fixed-size chunks (the last one padded) so every chunk reuses one compile;
+    ``fn`` returns an array or a tuple of arrays (per point), concatenated alike. ``empty``: the result for
+    no points (default a (0, 3) array)."""
     pts = jnp.asarray(points)
     nrm = jnp.asarray(normals)
     if pts.ndim != 2 or pts.shape[-1] != 3 or nrm.shape != pts.shape:
         raise ValueError(f"points and normals must both be (n, 3), got {pts.shape} and {nrm.shape}")
     n = pts.shape[0]
     if n == 0:
-        return jnp.zeros((0, 3), pts.dtype)
+        return jnp.zeros((0, 3), pts.dtype) if empty is None else empty
     size = next_pow2(n, lo=64, hi=chunk)
     outs = []
     for s in range(0, n, size):
         k = min(size, n - s)
         pad = lambda a, s=s, k=k: jnp.pad(a[s : s + k], ((0, size - k), (0, 0)), mode="edge")
-        outs.append(fn(pad(pts), pad(nrm))[:k])
-    return jnp.concatenate(outs)
+        outs.append(jax.tree.map(lambda a, k=k: a[:k], fn(pad(pts), pad(nrm))))
+    return jax.tree.map(lambda *parts: jnp.concatenate(parts), *outs)
 
 
 def _prepare(lf: LightFieldProbes, points, index, bounds):
@@ -263,6 +287,42 @@ def sh_irradiance(
     return _chunked(fn, points, normals, chunk)
 
 
+def irradiance_weights(
+    lf: LightFieldProbes,
+    points: Float[Array, "n 3"],
+    normals: Float[Array, "n 3"],
+    *,
+    method: str = "lightfield",
+    index: GridIndex | VoxelIndex | None = None,
+    bounds: Float[Array, "2 3"] | None = None,
+    normal_bias: float = 0.2,
+    chunk: int = _CHUNK,
+) -> tuple[np.ndarray, np.ndarray]:
+    """Which probes :func:`shade_irradiance` blends at each point, and by how much: the same candidates
+    and weights (``method``'s: McGuire's with visibility for ``"lightfield"``, trilinear / inverse
+    distance without it for ``"irradiance"`` and ``"sh"``), normalised; where every weight is 0 the
+    nearest usable probe with weight 1 (the shading's fallback). Not differentiable (host arrays).
+
+    Args:
+        lf, points, normals, index, bounds, normal_bias, chunk: as :func:`diffuse_irradiance`
+            (``normal_bias`` is unused by ``"irradiance"`` and ``"sh"``, which have no visibility term).
+        method: the shading method (:data:`SHADINGS`).
+
+    Returns:
+        (ids, weights): (n, k + 1) int32 probe indices (-1: no probe in that slot) and (n, k + 1) float
+        weights summing to 1 per point, k the index's candidates per point (8 for a grid).
+    """
+    if method not in SHADINGS:
+        raise ConfigError(f"shading method must be one of {SHADINGS}, got {method!r}")
+    index, dt = _prepare(lf, points, index, bounds)
+    visibility = method == "lightfield"
+    bias = jnp.asarray(normal_bias * probe_spacing(lf, index) if visibility else 0.0, dt)
+    fn = lambda x, n: _weights_chunk(lf, index, x.astype(dt), n.astype(dt), bias, visibility)
+    none = (jnp.zeros((0, 1), jnp.int32), jnp.zeros((0, 1), dt))
+    ids, w = _chunked(fn, points, normals, chunk, empty=none)
+    return np.asarray(ids), np.asarray(w)
+
+
 def shade_irradiance(
     lf: LightFieldProbes,
     points: Float[Array, "n 3"],
@@ -285,13 +345,11 @@ def shade_irradiance(
 
 
 __all__ = [
-    "RAY_HIT",
-    "RAY_MISS",
-    "RAY_UNRESOLVED",
     "SHADINGS",
     "default_index",
     "diffuse_irradiance",
     "glossy_radiance",
+    "irradiance_weights",
     "probe_spacing",
     "sh_coefficients",
     "sh_irradiance",

@@ -54,7 +54,8 @@ never passed off as a hit or miss).
 
 **Engines.** :func:`trace_ray` is the per-ray engine (vmapped nested loops; the reference). ``_wavefront``
 runs the same steps (``_march._march_step`` and the helpers below) as a state machine over a batch of
-lanes that are refilled as rays finish; ``TraceConfig.engine`` chooses.
+lanes that are refilled as rays finish; ``_engine.trace_light_field`` chooses by ``TraceConfig.engine``.
+Status codes: ``_status.TraceStatus``.
 """
 
 from __future__ import annotations
@@ -71,16 +72,22 @@ import numpy as np
 from jaxtyping import Array, Bool, Float, Int, Shaped, UInt8, UInt16
 from scipy.spatial import cKDTree
 
-from .._core import ConfigError, LightFieldProbes, add_border, dot3, oct_encode, texel_directions
-from .._core._errors import check_memory
+from .._core import (
+    ConfigError,
+    LightFieldProbes,
+    add_border,
+    check_memory,
+    dot3,
+    oct_encode,
+    texel_directions,
+)
 from .._core._progress import progress_bar
 from ._bake import _warn_probe_layout
 from ._index import GridIndex, VoxelIndex, grid_index, nearest_index, voxel_index
-from ._march import HIT, MISS, UNKNOWN, _candidates, _partners, trace_probe
+from ._march import _candidates, _partners, trace_probe
+from ._status import TraceStatus
 from ._surfels import cell_cones, interleave_quadrants, probe_cells_quadrants
 
-#: Status codes of :class:`TraceResult` (``UNRESOLVED``: no probe could decide).
-RAY_MISS, RAY_HIT, RAY_UNRESOLVED = 0, 1, 2
 _FALLBACK_POOL = 32  # nearest probes a fallback pick tests (per voxel of ``nearest_index``)
 HIERARCHIES = ("hiz", "two_level", "flat")
 ENGINES = ("per_ray", "wavefront")
@@ -375,11 +382,11 @@ class TraceResult(eqx.Module):
 
     @property
     def hit(self) -> Bool[Array, " n_rays"]:
-        return self.status == RAY_HIT
+        return self.status == TraceStatus.HIT
 
     @property
     def unresolved(self) -> Bool[Array, " n_rays"]:
-        return self.status == RAY_UNRESOLVED
+        return self.status == TraceStatus.UNRESOLVED
 
 
 # --------------------------------------------------------------------------------------------- building
@@ -797,7 +804,7 @@ class _RayState(NamedTuple):
 def _ray_state(tr: LightFieldTracer, dtype) -> _RayState:
     """A ray's state before its first probe (``st`` UNKNOWN: a probe is to be chosen)."""
     return _RayState(
-        jnp.int32(UNKNOWN),
+        jnp.int32(TraceStatus.UNKNOWN),
         jnp.zeros((), dtype),
         -jnp.ones(tr.config.max_probes, jnp.int32),
         jnp.int32(0),
@@ -844,11 +851,11 @@ def _after_probe(
     becomes UNKNOWN with no progress (t unchanged): the next probe retraces the whole unresolved part."""
     n_max = tr.config.max_probes
     st, t2, s2, texel = probe_out
-    doubtful = found & (st == MISS) & ~_sees(tr, jnp.maximum(p, 0)[None], x_end)[0]
-    st = jnp.where(doubtful, UNKNOWN, st)
+    doubtful = found & (st == TraceStatus.MISS) & ~_sees(tr, jnp.maximum(p, 0)[None], x_end)[0]
+    st = jnp.where(doubtful, TraceStatus.UNKNOWN, st)
     t2 = jnp.where(doubtful, c.t, t2)
     st = jnp.where(found, st, -1)  # -1: nothing left to try
-    t2 = jnp.where(found & (st == UNKNOWN), jnp.maximum(t2, c.t), jnp.where(found, t2, c.t))
+    t2 = jnp.where(found & (st == TraceStatus.UNKNOWN), jnp.maximum(t2, c.t), jnp.where(found, t2, c.t))
     visited = c.visited.at[jnp.minimum(c.n, n_max - 1)].set(jnp.where(found, p, c.visited[n_max - 1]))
     return _RayState(
         st,
@@ -871,12 +878,12 @@ def _after_probe(
 def _ray_result(c: _RayState):
     """The fields of :class:`TraceResult` from a finished ray's state."""
     status = jnp.where(
-        c.st == HIT,
-        jnp.int32(RAY_HIT),
-        jnp.where(c.st == MISS, jnp.int32(RAY_MISS), jnp.int32(RAY_UNRESOLVED)),
+        c.st == TraceStatus.HIT,
+        jnp.int32(TraceStatus.HIT),
+        jnp.where(c.st == TraceStatus.MISS, jnp.int32(TraceStatus.MISS), jnp.int32(TraceStatus.UNRESOLVED)),
     )
-    t = jnp.where(status == RAY_MISS, jnp.inf, c.t)
-    return status, t, jnp.where(status == RAY_HIT, c.p, -1), c.texel, c.steps, c.n, c.n_fb
+    t = jnp.where(status == TraceStatus.MISS, jnp.inf, c.t)
+    return status, t, jnp.where(status == TraceStatus.HIT, c.p, -1), c.texel, c.steps, c.n, c.n_fb
 
 
 def trace_ray(
@@ -915,46 +922,5 @@ def trace_ray(
         x_end = origin + t_end * direction
         return _after_probe(tr, c, p, found, from_index, from_fb, cell, slot, out, x_end)
 
-    c = jax.lax.while_loop(lambda c: c.st == UNKNOWN, body, _ray_state(tr, origin.dtype))
+    c = jax.lax.while_loop(lambda c: c.st == TraceStatus.UNKNOWN, body, _ray_state(tr, origin.dtype))
     return _ray_result(c)
-
-
-@eqx.filter_jit
-def trace_light_field(
-    tr: LightFieldTracer,
-    origins: Float[Array, "n_rays 3"],
-    directions: Float[Array, "n_rays 3"],
-    t_max: Float[Array, " n_rays"] | None = None,
-    *,
-    chunk: int | None = None,
-) -> TraceResult:
-    """Trace a batch of rays through the light-field probes (jitted; one compile per tracer layout).
-
-    Args:
-        tr: from :func:`make_tracer`.
-        origins: ray origins, world frame (offset secondary rays off their surface yourself).
-        directions: unit directions.
-        t_max: optional per-ray maximum distance (default: the scene diagonal).
-        chunk: per-ray engine: trace this many rays at a time (``lax.map``), so working memory stays
-            bounded as the batch grows; ``None`` traces all rays at once (static: one compile per value).
-            The wavefront engine ignores it (its working memory is ``wavefront_lanes`` lanes).
-
-    Returns:
-        A :class:`TraceResult`; unresolved rays are flagged, never counted as hits or misses. Both
-        engines (``tr.config.engine``) return the same result.
-    """
-    dt = tr.pos_world.dtype
-    origins = jnp.asarray(origins, dt)
-    directions = jnp.asarray(directions, dt)
-    if t_max is None:
-        t_max = jnp.full(origins.shape[:1], jnp.inf, dt)
-    t_max = jnp.asarray(t_max, dt)
-    if tr.config.engine == "wavefront":
-        from ._wavefront import trace_wavefront  # imports this module
-
-        return trace_wavefront(tr, origins, directions, t_max)[0]
-    if chunk is None:
-        out = jax.vmap(trace_ray, in_axes=(None, 0, 0, 0))(tr, origins, directions, t_max)
-    else:
-        out = jax.lax.map(lambda x: trace_ray(tr, *x), (origins, directions, t_max), batch_size=chunk)
-    return TraceResult(*out)

@@ -36,7 +36,7 @@ of the probe-relative coordinates, not bit for bit: XLA fuses the same float32 e
 in the two programs and LLVM contracts multiply–adds into FMAs per fusion — the per-ray engine differs
 from itself as much between two batch sizes (tests/probes/test_wavefront.py).
 
-Choose the engine with ``TraceConfig(engine="wavefront")``; :func:`~._trace.trace_light_field` then runs
+Choose the engine with ``TraceConfig(engine="wavefront")``; :func:`~._engine.trace_light_field` then runs
 :func:`trace_wavefront`. The per-ray engine stays the default and the simple reference.
 """
 
@@ -52,7 +52,6 @@ from jaxtyping import Array, Float, Int
 
 from ._index import GridIndex
 from ._march import (
-    MISS,
     _march_step,
     _Piece,
     _probe_pieces,
@@ -62,8 +61,8 @@ from ._march import (
     _segment_running,
     _segment_start,
 )
+from ._status import TraceStatus
 from ._trace import (
-    UNKNOWN,
     LightFieldTracer,
     TraceResult,
     _after_probe,
@@ -170,7 +169,7 @@ def _choose(tr: LightFieldTracer, origin, direction, t_end, rs: _RayState, p_idx
     def one(origin, direction, t_end, rs, p_idx, from_index, p_fb):
         p, found, from_fb = _pick(tr, p_idx, from_index, p_fb, rs)
         o, bounds = _probe_pieces(tr, jnp.maximum(p, 0), origin, direction, rs.t, t_end)
-        k = _next_piece(tr, bounds, jnp.int32(0), jnp.int32(MISS))
+        k = _next_piece(tr, bounds, jnp.int32(0), jnp.int32(TraceStatus.MISS))
         return dict(p=p, found=found, from_fb=from_fb, o=o, bounds=bounds, k=k)
 
     return jax.vmap(one)(origin, direction, t_end, rs, p_idx, from_index, p_fb)
@@ -290,7 +289,12 @@ def _probe_end(tr: LightFieldTracer, lanes: _Lanes, marching, ended, end_probe) 
     """Step 5: the many-probe loop's update for lanes whose probe ended, and every lane's next phase."""
     # 5. Probe end: the many-probe loop's update; the ray continues (another probe) or is done.
     pst, pt, psteps, ptexel = lanes.carry[:4]
-    probe_out = (pst, jnp.where(pst == MISS, lanes.t_end, pt), psteps, ptexel)  # as ``trace_probe``
+    probe_out = (
+        pst,
+        jnp.where(pst == TraceStatus.MISS, lanes.t_end, pt),
+        psteps,
+        ptexel,
+    )  # as ``trace_probe``
     with jax.named_scope("wf_probe_end"):
         rs = jax.vmap(lambda *a: _after_probe(tr, *a))(
             lanes.rs,
@@ -304,7 +308,9 @@ def _probe_end(tr: LightFieldTracer, lanes: _Lanes, marching, ended, end_probe) 
             lanes.origin + lanes.t_end[:, None] * lanes.direction,
         )
     phase = jnp.where(marching, jnp.where(ended, jnp.int32(PIECE), jnp.int32(MARCH)), lanes.phase)
-    phase = jnp.where(end_probe, jnp.where(rs.st == UNKNOWN, jnp.int32(SELECT), jnp.int32(DONE)), phase)
+    phase = jnp.where(
+        end_probe, jnp.where(rs.st == TraceStatus.UNKNOWN, jnp.int32(SELECT), jnp.int32(DONE)), phase
+    )
     return lanes._replace(rs=_where(end_probe, rs, lanes.rs), phase=phase)
 
 

@@ -61,6 +61,9 @@ _LAZY = {
         ),
         "_sampling",
     ),
+    "load_mitsuba": "_mitsuba_backend",
+    "RAY_EPS": "_integrator",
+    "sample_cosine_hemisphere": "_sampling",
 }
 __all__ = ["BACKEND_CHOICES", "BACKENDS", *_LAZY]
 
@@ -86,12 +89,14 @@ if TYPE_CHECKING:  # what static checkers and IDEs see; __getattr__ gives the sa
     from ._image_io import save_render as save_render
     from ._image_io import tonemap as tonemap
     from ._integrator import COMPONENTS as COMPONENTS
+    from ._integrator import RAY_EPS as RAY_EPS
     from ._lights import LightSample as LightSample
     from ._lights import LightTable as LightTable
     from ._lights import light_table as light_table
     from ._lights import sample_light as sample_light
     from ._mitsuba import best_mitsuba_variant as best_mitsuba_variant
     from ._mitsuba import mitsuba_scene_dict as mitsuba_scene_dict
+    from ._mitsuba_backend import load_mitsuba as load_mitsuba
     from ._render import RayRadiance as RayRadiance
     from ._render import RenderConfig as RenderConfig
     from ._render import RenderResult as RenderResult
@@ -103,8 +108,10 @@ if TYPE_CHECKING:  # what static checkers and IDEs see; __getattr__ gives the sa
     from ._sampling import make_frame as make_frame
     from ._sampling import path_uniforms as path_uniforms
     from ._sampling import power_heuristic as power_heuristic
+    from ._sampling import sample_cosine_hemisphere as sample_cosine_hemisphere
     from ._sampling import seed_from_key as seed_from_key
     from ._sampling import to_local as to_local
     from ._sampling import to_world as to_world
+
 
 __getattr__, __dir__ = lazy_exports(__name__, _LAZY, globals(), __all__)

@@ -23,8 +23,7 @@ import jax.numpy as jnp
 import numpy as np
 from jaxtyping import Array, Bool, Float, Int, Key, UInt32
 
-from .._core import Camera, ConfigError, Scene, SceneError, next_pow2
-from .._core._errors import check_memory
+from .._core import Camera, ConfigError, Scene, SceneError, check_memory, next_pow2
 from .._core._progress import progress_bar
 from ..geometry import AbstractRayCaster, make_caster
 from ._backends import BACKEND_CHOICES as BACKEND_CHOICES

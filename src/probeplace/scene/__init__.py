@@ -32,28 +32,28 @@ from ._sidecar import no_light_hint as no_light_hint
 from ._sidecar import parse_scene_config as parse_scene_config
 from ._sidecar import read_sidecar as read_sidecar
 from ._sidecar import sidecar_path as sidecar_path
-from ._sidecar_cli import add_scene_options as add_scene_options
 from ._sidecar_cli import parse_camera as parse_camera
 from ._sidecar_cli import parse_sky as parse_sky
 from ._sidecar_cli import parse_sun as parse_sun
 from ._sidecar_cli import scene_overrides as scene_overrides
-from ._sidecar_cli import scene_overrides_from_args as scene_overrides_from_args
 
 # name -> the private module defining it (each imports JAX)
 _LAZY = {
     **dict.fromkeys(("build_scene", "crease_normals", "make_camera", "make_materials", "make_sun"), "_build"),
     "cornell_box": "_cornell",
     "courtyard": "_courtyard",
-    **dict.fromkeys(("load_scene", "load_scene_file", "scene_config_layers"), "_load"),
+    **dict.fromkeys(("load_scene", "load_scene_file", "scene_config_layers", "scene_layers"), "_load"),
     "derived_views": "_raw",
     **dict.fromkeys(("PreviewMesh", "preview_mesh", "srgb8"), "_preview"),
     **dict.fromkeys(
         ("ROOMS_DARK_ROOM_BOUNDS", "ROOMS_LIT_ROOM_BOUNDS", "ROOMS_WALL_THICKNESS", "rooms"), "_rooms"
     ),
-    "apply_scene_config": "_sidecar_apply",
+    **dict.fromkeys(("apply_scene_config", "camera_origin"), "_sidecar_apply"),
     **dict.fromkeys(("sun_direction", "sun_from_irradiance"), "_sky"),
     **dict.fromkeys(("TEMPLE_UNDER_STAIRS_BOX", "temple"), "_temple"),
     **dict.fromkeys(("axis_angle_rotation", "transform_scene"), "_transform"),
+    "scene_summary": "_summary",
+    "read_gltf_json": "_gltf",
 }
 __all__ = [
     "KNOWN_SCENES",
@@ -76,12 +76,10 @@ __all__ = [
     "parse_scene_config",
     "read_sidecar",
     "sidecar_path",
-    "add_scene_options",
     "parse_camera",
     "parse_sky",
     "parse_sun",
     "scene_overrides",
-    "scene_overrides_from_args",
     "DAYLIGHT_SKY_RADIANCE",
     "DAYLIGHT_SUN_IRRADIANCE",
     *_LAZY,
@@ -95,9 +93,11 @@ if TYPE_CHECKING:  # what static checkers and IDEs see; __getattr__ gives the sa
     from ._build import make_sun as make_sun
     from ._cornell import cornell_box as cornell_box
     from ._courtyard import courtyard as courtyard
+    from ._gltf import read_gltf_json as read_gltf_json
     from ._load import load_scene as load_scene
     from ._load import load_scene_file as load_scene_file
     from ._load import scene_config_layers as scene_config_layers
+    from ._load import scene_layers as scene_layers
     from ._preview import PreviewMesh as PreviewMesh
     from ._preview import preview_mesh as preview_mesh
     from ._preview import srgb8 as srgb8
@@ -107,11 +107,14 @@ if TYPE_CHECKING:  # what static checkers and IDEs see; __getattr__ gives the sa
     from ._rooms import ROOMS_WALL_THICKNESS as ROOMS_WALL_THICKNESS
     from ._rooms import rooms as rooms
     from ._sidecar_apply import apply_scene_config as apply_scene_config
+    from ._sidecar_apply import camera_origin as camera_origin
     from ._sky import sun_direction as sun_direction
     from ._sky import sun_from_irradiance as sun_from_irradiance
+    from ._summary import scene_summary as scene_summary
     from ._temple import TEMPLE_UNDER_STAIRS_BOX as TEMPLE_UNDER_STAIRS_BOX
     from ._temple import temple as temple
     from ._transform import axis_angle_rotation as axis_angle_rotation
     from ._transform import transform_scene as transform_scene
+
 
 __getattr__, __dir__ = lazy_exports(__name__, _LAZY, globals(), __all__)

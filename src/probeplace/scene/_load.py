@@ -137,6 +137,25 @@ def scene_config_layers(
     return [layer for layer in layers if layer is not None]
 
 
+def scene_layers(name_or_path, overrides=None) -> tuple[Path | None, list[SceneConfig]]:
+    """What ``load_scene(name_or_path, overrides=overrides)`` reads besides geometry, cheaply: the scene
+    file (``None`` for a built-in) and its config layers, lowest first (``scene_config_layers``). For
+    messages that must name the layer a value came from (a camera's sidecar, say) after the load.
+
+    Raises:
+        ConfigError: an invalid sidecar or ``overrides`` (the load has refused them already).
+    """
+    if looks_like_path(name_or_path):
+        path = Path(name_or_path)
+    elif str(name_or_path) in BUILTIN_SCENES:
+        path = None
+    else:
+        path = find_scene_file(str(name_or_path))
+    if path is None:
+        return None, [parse_scene_config(overrides, "overrides")] if overrides else []
+    return path, scene_config_layers(path, overrides)
+
+
 def load_scene_file(
     path: Path,
     *,

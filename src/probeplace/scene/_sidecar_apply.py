@@ -10,7 +10,6 @@ from __future__ import annotations
 
 import dataclasses
 from collections.abc import Iterable, Sequence
-from pathlib import Path
 
 import equinox as eqx
 import jax.numpy as jnp
@@ -19,7 +18,7 @@ import numpy as np
 from .._core import Camera, ConfigError, Scene, Sun
 from ._build import make_camera, make_materials, make_sun
 from ._raw import DEFAULT_GREY
-from ._sidecar import NO_SUN, CameraSpec, SceneConfig, SunSpec, check_up, parse_scene_config
+from ._sidecar import NO_SUN, CameraSpec, SceneConfig, SunSpec, check_up
 from ._sky import DAYLIGHT_SUN_IRRADIANCE, sun_direction, sun_from_irradiance
 from ._transform import transform_scene
 
@@ -146,29 +145,6 @@ def _cameras(scene: Scene, cfg: SceneConfig) -> tuple[Camera, ...]:
         else:
             views.append(cam)
     return tuple(views)
-
-
-def scene_layers(name_or_path, overrides=None) -> tuple[Path | None, list[SceneConfig]]:
-    """What ``load_scene(name_or_path, overrides=overrides)`` reads besides geometry, cheaply: the scene
-    file (``None`` for a built-in) and its config layers, lowest first (``scene_config_layers``). For
-    messages that must name the layer a value came from (a camera's sidecar, say) after the load.
-
-    Raises:
-        ConfigError: an invalid sidecar or ``overrides`` (the load has refused them already).
-    """
-    from ._load import scene_config_layers
-    from ._registry import BUILTIN_SCENES
-    from ._search import find_scene_file, looks_like_path
-
-    if looks_like_path(name_or_path):
-        path = Path(name_or_path)
-    elif str(name_or_path) in BUILTIN_SCENES:
-        path = None
-    else:
-        path = find_scene_file(str(name_or_path))
-    if path is None:
-        return None, [parse_scene_config(overrides, "overrides")] if overrides else []
-    return path, scene_config_layers(path, overrides)
 
 
 def camera_origin(layers: Sequence[SceneConfig], name: str) -> tuple[str, CameraSpec] | None:

@@ -151,21 +151,3 @@ def scene_overrides(
     if cams:
         out["cameras"] = cams
     return out
-
-
-def add_scene_options(parser) -> None:
-    """``--sun``, ``--sky`` and ``--camera`` on an argparse (sub)parser: one-off overrides of the scene's
-    sidecar keys (this module's docstring gives the forms)."""
-    parser.add_argument("--sun", default=None, help="sun, e.g. az=120,el=35,irradiance=8 (or none)")
-    parser.add_argument("--sky", default=None, help="sky: daylight | none | r,g,b radiance")
-    parser.add_argument(
-        "--camera",
-        action="append",
-        default=[],
-        help="named camera, e.g. name=door,pos=1,1.6,4,look_at=0,1,0,fov=60 (repeatable)",
-    )
-
-
-def scene_overrides_from_args(args) -> dict[str, Any]:
-    """:func:`scene_overrides` of the options :func:`add_scene_options` added (checked before any work)."""
-    return scene_overrides(sun=args.sun, sky=args.sky, cameras=args.camera or ())

@@ -11,17 +11,19 @@ from __future__ import annotations
 
 import json
 import os
-import zipfile
 from dataclasses import dataclass
 from pathlib import Path
 
-import numpy as np
-
 from .._core._errors import ProbeplaceError
+from .._core._probe_files import read_light_field_arrays
 from ..export import ExportError, ExportProbes, read_probes
 
 PROBES_JSON = "probes.json"
 BAKED_NPZ = "probes_baked.npz"
+#: beside probes.json (experiment runner): each probe's part in the coverage, the uncovered samples
+COVERAGE_NPZ = "coverage_detail.npz"
+#: in eval/ (``evaluate.write_evaluation``): each probe's share of the error
+PROBE_ERROR_NPZ = "probe_error.npz"
 CONFIG_YAML = "config.yaml"
 _WHAT = "give a run folder (it holds probes.json) or a probes file (.json, .npz, .glb, .usda, ...)"
 
@@ -39,7 +41,9 @@ class ViewInput:
         scene: the scene name or file to load (``--scene`` or recorded), or None for a run folder whose
             ``config.yaml`` (``run_config``) says it.
         run_config: a run folder's ``config.yaml`` as a dict, or None.
-        metadata: the probe file's metadata (placement record: counts of relocated / filled probes).
+        metadata: the probe file's metadata (placement record: which probes were relocated / filled).
+        coverage_path: a run folder's ``coverage_detail.npz``, or None (a run of an older version, or a
+            bare probes file).
     """
 
     path: Path
@@ -50,6 +54,7 @@ class ViewInput:
     scene: str | None
     run_config: dict | None
     metadata: dict
+    coverage_path: Path | None = None
 
 
 def resolve_input(path: str | os.PathLike, scene: str | None = None) -> ViewInput:
@@ -109,6 +114,7 @@ def _run_folder(d: Path, scene: str | None) -> ViewInput:
         check_scene_found(name, f"{cfg_path} (scene.name)")
     baked = d / BAKED_NPZ
     eval_dir = d / "eval"
+    coverage = d / COVERAGE_NPZ
     return ViewInput(
         d,
         probes,
@@ -118,6 +124,7 @@ def _run_folder(d: Path, scene: str | None) -> ViewInput:
         scene,
         config,
         dict(probes.metadata),
+        coverage if coverage.is_file() else None,
     )
 
 
@@ -139,9 +146,9 @@ def _recorded_scene(path: Path, probes: ExportProbes) -> str | None:
     if path.suffix != ".npz":
         return None
     try:
-        with np.load(path, allow_pickle=False) as z:
-            settings = json.loads(str(z["bake_settings"])) if "bake_settings" in z.files else {}
-    except (zipfile.BadZipFile, ValueError, OSError):
+        z = read_light_field_arrays(path, ("bake_settings",))
+        settings = json.loads(str(z["bake_settings"])) if "bake_settings" in z else {}
+    except (ProbeplaceError, ValueError):
         return None  # read_probes read this file already; a bake without settings records no scene
     name = settings.get("scene") if isinstance(settings, dict) else None
     return name if isinstance(name, str) and name else None

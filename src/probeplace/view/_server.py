@@ -23,7 +23,15 @@ from ._maps import (
     read_npz_row,
     tile,
 )
-from ._model import COLOUR_STATUS, SIZE_UNIFORM, STATUS_LABELS, STATUS_RGB, ViewCamera, ViewModel
+from ._model import (
+    COLOUR_STATUS,
+    SIZE_UNIFORM,
+    STATUS_LABELS,
+    STATUS_RGB,
+    UNCOVERED_RGB,
+    ViewCamera,
+    ViewModel,
+)
 
 #: the irradiance sphere: this many points, this many marker radii across (it hides the marker)
 SPHERE_POINTS = 4000
@@ -112,7 +120,9 @@ class Viewer:
         h = self._gui["probes"]
         if h is None:
             return
-        h.batched_colors = self.model.colours(self._gui["colour"].value)
+        by = self._gui["colour"].value
+        h.batched_colors = self.model.colours(by)
+        self._gui["colour_legend"].content = self.model.legend(by)
         scales = self.radii().astype(np.float32)
         if self.selected is not None and self.model.baked is not None:
             # its irradiance ball stands in for it (viser's points do not hide what is inside them)
@@ -133,6 +143,7 @@ class Viewer:
             p = m.positions[i]
             lines = [
                 f"**probe {i}** at ({p[0]:.4g}, {p[1]:.4g}, {p[2]:.4g}): {STATUS_LABELS[m.status[i]]}",
+                *probe_figures(m, i),
             ]
             b = m.baked
             if b is None:
@@ -172,6 +183,24 @@ class Viewer:
             )
 
 
+def probe_figures(m: ViewModel, i: int) -> list[str]:
+    """Probe ``i``'s coverage counts and error shares, one line each, when the run recorded them."""
+    out = []
+    if m.coverage is not None:
+        c = m.coverage
+        out.append(
+            f"sees {c.seen[i]} of {c.n_coverable} coverable surface samples, {c.unique[i]} of them alone"
+        )
+    if m.error is not None:
+        parts = []
+        for comp, share in m.error.shares.items():
+            mse = m.error.mse.get(comp, float("nan"))
+            pct = f" ({100 * share[i] / mse:.3g} %)" if mse > 0 else ""
+            parts.append(f"{comp} {share[i]:.4g}{pct}")
+        out.append("share of the MSE: " + ", ".join(parts))
+    return out
+
+
 def start_viewer(model: ViewModel, *, host: str = "127.0.0.1", port: int = 8080) -> Viewer:
     """Serve ``model`` on ``host:port`` (viser moves to the next free port when that one is taken:
     ``Viewer.url`` has the one in use) and return at once."""
@@ -197,8 +226,29 @@ def start_viewer(model: ViewModel, *, host: str = "127.0.0.1", port: int = 8080)
         scene.add_mesh_simple(f"/scene/part_{j}", v, f, color=rgb, side="double", flat_shading=True)
     _add_gui(viewer)
     _add_probes(viewer)
+    _add_uncovered(viewer)
     _add_cameras(viewer)
     return viewer
+
+
+def _add_uncovered(viewer: Viewer) -> None:
+    """The coverage samples no probe sees, as red points (hidden until the checkbox is ticked)."""
+    m, g = viewer.model, viewer._gui
+    if m.coverage is None or not len(m.coverage.uncovered):  # full coverage: nothing to draw
+        return
+    pts = m.coverage.uncovered
+    handle = viewer.server.scene.add_point_cloud(
+        "/uncovered",
+        points=pts.astype(np.float32).reshape(-1, 3),
+        colors=np.tile(np.asarray(UNCOVERED_RGB, np.uint8), (len(pts), 1)),
+        point_size=0.006 * m.diagonal,
+        point_shape="circle",
+        point_shading="flat",
+        precision="float32",
+        visible=False,
+    )
+    g["uncovered_points"] = handle
+    g["show_uncovered"].on_update(lambda _: setattr(handle, "visible", g["show_uncovered"].value))
 
 
 def _set_initial_camera(server, model: ViewModel) -> None:
@@ -301,6 +351,7 @@ def _add_cameras(viewer: Viewer) -> None:
 def _add_gui(viewer: Viewer) -> None:
     m, gui, g = viewer.model, viewer.server.gui, viewer._gui
     counts = np.bincount(m.status, minlength=len(STATUS_LABELS))
+    shown = [k for k in range(len(STATUS_LABELS)) if k < 3 or counts[k]]  # placement's kinds when present
     gui.add_markdown(f"**{m.title}**: {len(m.positions)} probes")
     # first: a click's answer shows without scrolling the panel
     with gui.add_folder("Selected probe"):
@@ -317,11 +368,21 @@ def _add_gui(viewer: Viewer) -> None:
         g["show_probes"] = gui.add_checkbox("show probes", True)
         g["colour"] = gui.add_dropdown("colour by", m.colour_options, initial_value=COLOUR_STATUS)
         g["size"] = gui.add_dropdown("size by", m.size_options, initial_value=SIZE_UNIFORM)
+        g["colour_legend"] = gui.add_markdown(m.legend(COLOUR_STATUS))
         legend = [
-            f"<span style='color:rgb{tuple(int(c) for c in STATUS_RGB[k])}'>●</span> {label}: {counts[k]}"
-            for k, label in enumerate(STATUS_LABELS)
+            f"<span style='color:rgb{tuple(int(c) for c in STATUS_RGB[k])}'>●</span> "
+            f"{STATUS_LABELS[k]}: {counts[k]}"
+            for k in shown
         ]
         gui.add_markdown("  \n".join(legend) + "\n\n" + m.status_note)
+        if m.coverage is not None:
+            n_un = len(m.coverage.uncovered)
+            g["show_uncovered"] = gui.add_checkbox(
+                f"uncovered surface samples ({n_un})", False, disabled=not n_un, hint=m.coverage_note
+            )
+            gui.add_markdown(f"*coverage*: {m.coverage_note}")
+        if m.error is not None:
+            gui.add_markdown(f"*error contribution*: {m.error_note}")
         for name, reason in m.unavailable.items():
             gui.add_checkbox(name, False, disabled=True, hint=reason)
             gui.add_markdown(f"*{name}*: {reason}")

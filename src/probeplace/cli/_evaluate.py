@@ -23,7 +23,7 @@ from typing import ClassVar
 
 import numpy as np
 
-from ._core import ConfigError, check_count, is_auto
+from .._core import ConfigError, check_count, is_auto
 
 
 def _count(text: str) -> int | str:
@@ -37,8 +37,8 @@ def _count(text: str) -> int | str:
 
 def add_parser(sub) -> None:
     """Register the ``evaluate`` subcommand on an argparse subparsers object."""
-    from .render import BACKEND_CHOICES
-    from .scene import add_scene_options
+    from ..render import BACKEND_CHOICES
+    from ._scene_options import add_scene_options
 
     e = sub.add_parser(
         "evaluate",
@@ -199,8 +199,8 @@ def runner_defaults() -> Mapping:
     """The default of every option of :data:`RUNNER_KEYS`, read from the runner's defaults
     (``ExperimentConfig()``: its ``bake``, ``tracer`` and ``eval`` groups; the tracer's hierarchy is the
     library's ``TraceConfig``'s, as in a run). Read-only."""
-    from .experiment import ExperimentConfig, bake_values, eval_values
-    from .probes import TraceConfig
+    from ..experiment import ExperimentConfig, bake_values, eval_values
+    from ..probes import TraceConfig
 
     cfg = ExperimentConfig()
     ev, bake = eval_values(cfg), bake_values(cfg)
@@ -255,9 +255,9 @@ def _as_option(e: ConfigError) -> ConfigError:
 def eval_config(args: argparse.Namespace):
     """The evaluation settings: the runner's (``experiment._schema.eval_values`` of ``ExperimentConfig()``)
     with the options given over them, checked (messages name the option) and sized."""
-    from .evaluate import EvalConfig
-    from .experiment import ExperimentConfig, eval_values
-    from .probes import TraceConfig
+    from ..evaluate import EvalConfig
+    from ..experiment import ExperimentConfig, eval_values
+    from ..probes import TraceConfig
 
     opt = resolved_options(args)
     values = eval_values(ExperimentConfig())
@@ -267,7 +267,7 @@ def eval_config(args: argparse.Namespace):
         config = EvalConfig(**values, trace=trace, seed=opt["seed"])
     except ConfigError as e:
         raise _as_option(e) from None
-    from .evaluate import check_eval_memory
+    from ..evaluate import check_eval_memory
 
     check_eval_memory(config, "--width × --height: the reference render")
     return config
@@ -276,8 +276,8 @@ def eval_config(args: argparse.Namespace):
 def bake_config(args: argparse.Namespace):
     """The bake settings: the runner's (``experiment._schema.bake_values`` of ``ExperimentConfig()``) with
     ``--radiance-res`` / ``--geometry-res`` over them, checked (messages name the option)."""
-    from .experiment import ExperimentConfig, bake_values
-    from .probes import BakeConfig
+    from ..experiment import ExperimentConfig, bake_values
+    from ..probes import BakeConfig
 
     opt = resolved_options(args)
     values = bake_values(ExperimentConfig())
@@ -291,8 +291,8 @@ def bake_config(args: argparse.Namespace):
 
 def _checked_outputs(args: argparse.Namespace, path: Path, config) -> None:
     """--save-baked and --out: the right kind of input, and writable, before any work."""
-    from ._core._checks import check_writable_file, check_writable_folder
-    from .evaluate import evaluation_bytes
+    from .._core._checks import check_writable_file, check_writable_folder
+    from ..evaluate import evaluation_bytes
 
     if args.save_baked is not None:
         if path.suffix != ".json":
@@ -306,8 +306,8 @@ def _checked_outputs(args: argparse.Namespace, path: Path, config) -> None:
 def _checked_inputs(args: argparse.Namespace):
     """Every input checked before the scene is loaded and anything is baked or rendered: (path, config,
     bake config or None, ProbeSet or baked probes)."""
-    from ._core._checks import check_npz_archive
-    from .probes import load_probes
+    from .._core._checks import check_npz_archive
+    from ..probes import load_probes
 
     path = Path(args.probes)
     if path.suffix not in (".json", ".npz", *EXPORTED_SUFFIXES):
@@ -318,7 +318,7 @@ def _checked_inputs(args: argparse.Namespace):
     config = eval_config(args)  # first: the output's size bound needs a sensible image size
     _checked_outputs(args, path, config)
     if config.backend == "mitsuba":  # refuse before loading anything if its LLVM variant cannot load
-        from .render._mitsuba_backend import load_mitsuba
+        from ..render import load_mitsuba
 
         try:
             load_mitsuba()
@@ -343,22 +343,14 @@ EXPORTED_SUFFIXES = (".glb", ".gltf", ".usda", ".usdc", ".usd", ".lodprobes")
 
 
 def _placed_probes(path: Path):
-    """(ProbeSet, its document without the arrays) of a ProbeSet .json or of an exported set
-    (``export.read_probes``: glTF, USD, Three.V8, probeplace.ProbeExport JSON), whose method, units and
+    """(ProbeSet, its record: method, units_m, metadata) of a ProbeSet .json or of an exported set, read
+    once by ``export.read_probes`` (glTF, USD, Three.V8, probeplace.ProbeExport JSON): method, units and
     metadata (the scene it was placed in) come along."""
     import jax.numpy as jnp
 
-    from ._core import ProbeSet, load_probe_set
-    from .export import ExportError, read_probes
-    from .export._data import PROBE_SET_FORMAT
+    from .._core import ProbeSet
+    from ..export import ExportError, read_probes
 
-    if path.suffix == ".json":
-        try:
-            tag = json.loads(path.read_text()).get("format")
-        except (OSError, ValueError, AttributeError):
-            tag = None  # load_probe_set names the problem
-        if tag == PROBE_SET_FORMAT or tag is None:
-            return load_probe_set(path)
     try:
         exp = read_probes(path)
     except ExportError as e:
@@ -371,7 +363,7 @@ def _placed_probes(path: Path):
 
 def _scene_key(name_or_path: str) -> str:
     """The name a scene loads under: a file's stem (``load_scene`` names a file scene so), else the name."""
-    from .scene import looks_like_path
+    from ..scene import looks_like_path
 
     return Path(name_or_path).stem if looks_like_path(name_or_path) else str(name_or_path)
 
@@ -380,7 +372,7 @@ def _check_recorded_scene(meta: dict, path: Path, scene: str) -> None:
     """Refuse a ProbeSet file that records another scene (``probeplace place`` writes ``metadata.scene``:
     the name or path it was given) than ``--scene``, compared by the name each loads under; the check a
     baked ``.npz`` gets (``probes.check_bake_settings``), before the scene is even loaded."""
-    from .probes._bake import check_probe_scene
+    from ..probes import check_probe_scene
 
     record = meta.get("metadata")
     recorded = record.get("scene") if isinstance(record, dict) else None
@@ -399,9 +391,8 @@ def _check_recorded_scene(meta: dict, path: Path, scene: str) -> None:
 def _check_probes_fit(probes, path: Path, scene, args: argparse.Namespace, config, overrides, view) -> None:
     """After the scene is loaded, before any caster, bake or render: the probes lie in the scene (a baked
     file's recorded scene and depth first), the cameras are in free space, the lights reach the views."""
-    from .evaluate import check_views_and_lights
-    from .probes import check_bake_settings
-    from .probes._bake import check_probes_in_scene
+    from ..evaluate import check_views_and_lights
+    from ..probes import check_bake_settings, check_probes_in_scene
 
     if path.suffix == ".npz":
         check_bake_settings(probes, scene_name=scene.name, eval_max_depth=config.max_depth)
@@ -432,7 +423,7 @@ class _Stages:
     }
 
     def __init__(self, config) -> None:
-        from ._core import _progress
+        from .._core import _progress
 
         self.on = _progress._enabled
         self.t0 = time.perf_counter()
@@ -457,9 +448,9 @@ class _Stages:
 def run(args: argparse.Namespace) -> int:
     import jax
 
-    from .evaluate import evaluate, write_evaluation
-    from .geometry import make_caster
-    from .probes import (
+    from ..evaluate import evaluate, write_evaluation
+    from ..geometry import make_caster
+    from ..probes import (
         bake_depth_for,
         bake_probes,
         choose_bake_spp,
@@ -467,7 +458,8 @@ def run(args: argparse.Namespace) -> int:
         path_traced_radiance,
         save_probes,
     )
-    from .scene import load_scene, scene_overrides_from_args
+    from ..scene import load_scene
+    from ._scene_options import scene_overrides_from_args
 
     overrides = scene_overrides_from_args(args)  # a bad --sun/--sky/--camera fails before any work
     path, config, bake_cfg, probes = _checked_inputs(args)

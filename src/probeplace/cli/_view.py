@@ -3,8 +3,10 @@
 from __future__ import annotations
 
 import argparse
+import contextlib
 import signal
 import threading
+from collections.abc import Iterator
 
 DEFAULT_PORT = 8080
 
@@ -39,8 +41,8 @@ def add_parser(v: argparse.ArgumentParser) -> None:
 
 def checked_input(args: argparse.Namespace):
     """Every input checked before the scene is loaded or the server started (the catalogue's entry point)."""
-    from .._core._errors import ConfigError
-    from ._input import resolve_input
+    from .._core import ConfigError
+    from ..view import resolve_input
 
     if not 0 <= args.port <= 65535:
         raise ConfigError(f"--port must be in 0..65535, got {args.port}")
@@ -48,38 +50,43 @@ def checked_input(args: argparse.Namespace):
 
 
 def cmd_view(args: argparse.Namespace) -> int:
-    from ._model import load_view_model
-    from ._server import hostname, start_viewer
+    from ..view import hostname, load_view_model, start_viewer
 
     inp = checked_input(args)
     model = load_view_model(inp)
     viewer = start_viewer(model, host=args.host, port=args.port)
     port = viewer.server.get_port()
-    print(f"probeplace view: {viewer.url}  ({model.title}: {len(model.positions)} probes)", flush=True)
-    print(
-        f"  over SSH: ssh -L {port}:localhost:{port} {hostname()}  then open http://localhost:{port}",
-        flush=True,
-    )
-    print("  Ctrl-C stops the viewer", flush=True)
     try:
-        wait_for_stop()
+        # The handlers go in before the URL is printed: a Ctrl-C from someone who has read it is a stop.
+        with stop_signals() as stopped:
+            print(
+                f"probeplace view: {viewer.url}  ({model.title}: {len(model.positions)} probes)", flush=True
+            )
+            print(
+                f"  over SSH: ssh -L {port}:localhost:{port} {hostname()}  then open http://localhost:{port}",
+                flush=True,
+            )
+            print("  Ctrl-C stops the viewer", flush=True)
+            while not stopped.wait(0.5):
+                pass
     finally:
         viewer.stop()
     print("probeplace view: stopped", flush=True)
     return 0
 
 
-def wait_for_stop() -> None:
-    """Block until Ctrl-C (SIGINT) or SIGTERM. The signal only sets an event: the viewer then stops as a
-    normal end of the command (status 0), not as the interrupt every other command turns into 130."""
+@contextlib.contextmanager
+def stop_signals() -> Iterator[threading.Event]:
+    """An event that Ctrl-C (SIGINT) or SIGTERM sets while the block runs: the viewer then stops as a
+    normal end of the command (status 0), not as the interrupt every other command turns into 130. Off
+    the main thread (no signal handlers there) only the caller sets it."""
     done = threading.Event()
     if threading.current_thread() is not threading.main_thread():
-        done.wait()
+        yield done
         return
     previous = {s: signal.signal(s, lambda *_: done.set()) for s in (signal.SIGINT, signal.SIGTERM)}
     try:
-        while not done.wait(0.5):
-            pass
+        yield done
     finally:
         for s, handler in previous.items():
             signal.signal(s, handler)

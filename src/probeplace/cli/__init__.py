@@ -7,7 +7,7 @@ import logging
 import os
 import sys
 
-from ._core import ProbeplaceError
+from .._core import ProbeplaceError
 
 
 def _cmd_scenes(args: argparse.Namespace) -> int:
@@ -17,7 +17,7 @@ def _cmd_scenes(args: argparse.Namespace) -> int:
         return _show_scene(args)
     if args.sun is not None or args.sky is not None or args.camera:
         raise ProbeplaceError("--sun, --sky and --camera need a scene: probeplace scenes NAME --sun ...")
-    from .scene import list_scenes
+    from ..scene import list_scenes
 
     entries = list_scenes()
     builtin = {e.name for e in entries if e.kind == "builtin"}
@@ -35,15 +35,15 @@ def _show_scene(args: argparse.Namespace) -> int:
     imports JAX (a Scene is an Equinox module); nothing is compiled."""
     from pathlib import Path
 
-    from .scene import (
+    from ..scene import (
         BUILTIN_SCENES,
         find_scene_file,
         load_scene,
         looks_like_path,
         scene_config_layers,
-        scene_overrides_from_args,
+        scene_summary,
     )
-    from .scene._summary import scene_summary
+    from ._scene_options import scene_overrides_from_args
 
     overrides = scene_overrides_from_args(args)  # checked before the scene is read
     scene = load_scene(args.name, overrides=overrides or None)
@@ -99,8 +99,8 @@ def _show_scene(args: argparse.Namespace) -> int:
 
 
 def _cmd_demo(args: argparse.Namespace) -> int:
-    from ._core._checks import check_writable_folder
-    from .demo import load_demo_config, run_demo
+    from .._core._checks import check_writable_folder
+    from ..demo import load_demo_config, run_demo
 
     config = load_demo_config(args.config) if args.config else None
     check_writable_folder(args.out, "--out")
@@ -109,7 +109,7 @@ def _cmd_demo(args: argparse.Namespace) -> int:
 
 # --- export (issue 8) ---
 def _cmd_export(args: argparse.Namespace) -> int:
-    from .export import export_probes
+    from ..export import export_probes
 
     probes = _export_input(args)
     opts: dict = {}
@@ -129,8 +129,8 @@ def _export_input(args: argparse.Namespace):
     written, a ``.npz`` is a NumPy archive, the set has active probes."""
     import dataclasses
 
-    from ._core._checks import check_npz_archive, check_writable_file
-    from .export import read_probes
+    from .._core._checks import check_npz_archive, check_writable_file
+    from ..export import read_probes
 
     check_writable_file(args.out, "--out")
     for flag, path in (("PROBES", args.probes), ("--probe-set", args.probe_set)):
@@ -150,7 +150,7 @@ def _export_input(args: argparse.Namespace):
 
 
 def _fill_export_parser(e: argparse.ArgumentParser) -> None:
-    from .export._registry import FORMATS  # NumPy only
+    from ..export import FORMATS  # NumPy only
 
     e.description = "Export probes: " + "; ".join(f"{k}: {f.summary}" for k, f in FORMATS.items())
     e.add_argument("probes", help="ProbeSet .json (probeplace place), baked .npz, or an exported file")
@@ -174,11 +174,12 @@ def _fill_export_parser(e: argparse.ArgumentParser) -> None:
 def _cmd_place(args: argparse.Namespace) -> int:
     """Place probes (``placement.place``), write the top view and then the probe set (last: a probe set
     on disk means the command finished)."""
-    from ._core import save_probe_set
-    from ._core._checks import check_writable_file
-    from ._core._io import naming_the_file
-    from .placement import FitnessConfig, place, save_top_view
-    from .scene import load_scene, scene_overrides_from_args
+    from .._core import save_probe_set
+    from .._core._checks import check_writable_file
+    from .._core._io import naming_the_file
+    from ..placement import FitnessConfig, place, save_top_view
+    from ..scene import load_scene
+    from ._scene_options import scene_overrides_from_args
 
     out, png, budget, region = _checked_place_args(args)
     # vardis path-traces its dense probes: a scene without light is refused by the load, naming the method
@@ -218,8 +219,8 @@ def _budget_that_fits(args: argparse.Namespace, scene, budget):
     and ``--geometry-res`` (else the scene's default); ``auto`` unchanged. Before any placement."""
     if budget == "auto" and args.memory_budget is None:
         return budget
-    from .placement import check_probe_count, count_for_memory
-    from .probes import BakeConfig, default_radiance_res, probe_bytes
+    from ..placement import check_probe_count, count_for_memory
+    from ..probes import BakeConfig, default_radiance_res, probe_bytes
 
     res = args.radiance_res or default_radiance_res(scene)
     bake = BakeConfig(radiance_res=res, geometry_res=args.geometry_res or res)
@@ -235,14 +236,14 @@ def _checked_place_args(args: argparse.Namespace):
     """Every ``place`` option checked before the scene is loaded: (out, png, budget, region)."""
     from pathlib import Path
 
-    from ._core._checks import check_writable_file
-    from .placement import PlaceRequest, get_method, parse_bytes
+    from .._core._checks import check_writable_file
+    from ..placement import PlaceRequest, get_method, parse_bytes
 
     budget = "auto" if args.budget == "auto" else _positive_int(args.budget)
     if args.memory_budget is not None:
         if budget != "auto":
             raise ProbeplaceError("give --budget or --memory-budget, not both")
-        from ._core._errors import check_memory
+        from .._core import check_memory
 
         # the maps of the probes filling it must fit in memory themselves (issue 31: "1TB")
         check_memory(
@@ -250,7 +251,7 @@ def _checked_place_args(args: argparse.Namespace):
             f"--memory-budget {args.memory_budget}: baking the probes that fill it",
             "give a SIZE under the limit",
         )
-        from .probes import BakeConfig
+        from ..probes import BakeConfig
 
         BakeConfig(radiance_res=args.radiance_res, geometry_res=args.geometry_res)
     region = (
@@ -397,7 +398,7 @@ def _lazy(sub, name: str, help: str | None, fill) -> None:
 def build_parser(lazy: bool = True) -> argparse.ArgumentParser:
     """The ``probeplace`` parser; each subcommand's options load on first use (``lazy=False``: all now,
     for code that inspects them)."""
-    from . import __version__
+    from .. import __version__
 
     p = _Main(prog="probeplace", description=__doc__, formatter_class=_HelpFormatter)
     p.add_argument("--version", action="version", version=f"probeplace {__version__}")
@@ -422,7 +423,7 @@ def build_parser(lazy: bool = True) -> argparse.ArgumentParser:
     _lazy(sub, "export", _EXPORT_HELP, _fill_export_parser)
     _lazy(sub, "evaluate", None, _fill_evaluate_parser)  # --- evaluate (issue 4) ---
     _lazy(sub, "view", _VIEW_HELP, _fill_view_parser)  # --- view (issue 36) ---
-    from ._cache_cli import add_parser as _add_cache  # --- cache (issue 32); imports no JAX ---
+    from ._cache import add_parser as _add_cache  # --- cache (issue 32); imports no JAX ---
 
     _add_cache(p, sub)
     cache = sub.choices["cache"]
@@ -442,7 +443,7 @@ def _fill_scenes_parser(s: argparse.ArgumentParser) -> None:
         help="a scene name or file: load it (sidecar, KNOWN_SCENES and --sun/--sky/--camera applied) and "
         "print its lights, cameras, units, bounds and triangle count",
     )
-    from .scene import add_scene_options
+    from ._scene_options import add_scene_options
 
     add_scene_options(s)
     s.set_defaults(func=_cmd_scenes)
@@ -455,7 +456,7 @@ def _fill_demo_parser(d: argparse.ArgumentParser) -> None:
 
 
 def _fill_evaluate_parser(e: _Subcommand) -> None:
-    from ._evaluate_cli import add_parser
+    from ._evaluate import add_parser
 
     add_parser(_Into(e))
 
@@ -468,7 +469,7 @@ _VIEW_HELP = (
 
 
 def _fill_view_parser(v: argparse.ArgumentParser) -> None:
-    from .view._cli import add_parser
+    from ._view import add_parser
 
     add_parser(v)
 
@@ -478,8 +479,8 @@ _EXPORT_HELP = "write a probe set to an engine format (docs/export.md)"
 
 def _fill_place_parser(pl: argparse.ArgumentParser) -> None:
     """``probeplace place``: methods and refiners from their registries (imports the placement stage)."""
-    from .placement import COVERAGE_RULES, OBJECTIVES, REFINERS, get_method, method_names
-    from .scene import add_scene_options
+    from ..placement import COVERAGE_RULES, OBJECTIVES, REFINERS, get_method, method_names
+    from ._scene_options import add_scene_options
 
     pl.add_argument("scene", help="scene name or file (see `probeplace scenes`)")
     add_scene_options(pl)
@@ -563,7 +564,7 @@ def _os_error_text(e: OSError, out=None) -> str:
 
 def _configure(args: argparse.Namespace) -> None:
     """Logging level and progress bars of ``-v`` / ``-q``."""
-    from ._core._progress import set_progress
+    from .._core._progress import set_progress
 
     level = logging.INFO if args.verbose else logging.WARNING
     logging.basicConfig(level=level, format="%(levelname)s %(message)s")
@@ -577,7 +578,7 @@ def main(argv: list[str] | None = None) -> int:
     cannot be read or written) is one line ``probeplace: error: ...`` and status 2; Ctrl-C is one line
     ``probeplace: interrupted`` and status 130 (with ``argv`` None, the process's own command, the
     process ends there). Neither prints a traceback."""
-    from ._core._interrupt import interruptible
+    from .._core._interrupt import interruptible
 
     args = None
     try:
@@ -587,7 +588,7 @@ def main(argv: list[str] | None = None) -> int:
             if args.verbose and args.quiet:
                 parser.error("-v/--verbose and -q/--quiet exclude each other")
             _configure(args)
-            from ._cache_cli import enable_from_args  # JAX's compilation cache, before any compile
+            from ._cache import enable_from_args  # JAX's compilation cache, before any compile
 
             enable_from_args(args)
             return int(args.func(args) or 0)

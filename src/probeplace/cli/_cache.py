@@ -5,7 +5,7 @@ from __future__ import annotations
 
 import argparse
 
-from ._core import _jax_cache
+from .._core import _jax_cache
 
 
 def add_parser(parser: argparse.ArgumentParser, sub) -> None:
