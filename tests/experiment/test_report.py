@@ -257,10 +257,11 @@ def test_report_pairs_seeds_at_an_exact_count(tmp_path):
 
 def test_coverage_is_judged_with_the_tolerance_of_target_reached(tmp_path):
     """One tolerance decides ``target_reached`` and the runner's ``coverage<100%``
-    (``placement._auto.COVERAGE_RTOL``): a shortfall inside it is full coverage, one beyond it a failure;
-    the report never prints such a failing coverage as 1.0000 (issue 31: 0.9999997 beside the flag)."""
+    (``placement.skeleton._auto.COVERAGE_RTOL``): a shortfall inside it is full coverage, one beyond it a
+    failure; the report never prints such a failing coverage as 1.0000 (issue 31: 0.9999997 beside the
+    flag)."""
     from probeplace.experiment import failures
-    from probeplace.placement._auto import COVERAGE_RTOL, reaches_target
+    from probeplace.placement.skeleton._auto import COVERAGE_RTOL, reaches_target
 
     inside, beyond = 1.0 - COVERAGE_RTOL / 2, 1.0 - 2 * COVERAGE_RTOL
     assert reaches_target(inside) and not reaches_target(beyond)

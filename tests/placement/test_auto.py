@@ -44,8 +44,8 @@ def test_temple_auto_beats_uniform_grid():
 def test_auto_budget_reports_the_refiner_status(small):
     """A solver stopped by ``max_steps`` is reported as such (the stability study's "not converged"), and
     ``place`` turns the status into ``refine_converged``."""
-    from probeplace.placement._optimistix import OptimistixRefiner
     from probeplace.placement._registry import refine_record as _refine_report
+    from probeplace.placement.refine._optimistix import OptimistixRefiner
 
     res = auto_budget(small, key=jax.random.key(0), refiner=OptimistixRefiner(solver="bfgs", max_steps=1))
     assert res.refine_status == "reached max_steps"
@@ -61,7 +61,7 @@ def test_binding_budget_pools_the_gap_probes(cornell):
     corner's candidates the seeds-only search fills the budget with corner probes, the pooled search (the
     full search's probes + the seeds) fills it better; the result respects the budget and reports the
     coverage an independent recomputation gives."""
-    from probeplace.placement._auto import _search
+    from probeplace.placement.skeleton._auto import _search
 
     problem = make_problem(cornell, key=jax.random.key(0))
     lo, hi = np.asarray(problem.lo, np.float64), np.asarray(problem.hi, np.float64)

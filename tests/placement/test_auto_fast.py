@@ -13,7 +13,7 @@ from probeplace.placement import (
     make_problem,
     probe_clearance,
 )
-from probeplace.placement._auto import _greedy, _remove_redundant
+from probeplace.placement.skeleton._auto import _greedy, _remove_redundant
 
 
 def _plain_greedy(vis, a, target):

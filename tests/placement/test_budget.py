@@ -9,7 +9,13 @@ import pytest
 from probeplace._core import ConfigError
 from probeplace.geometry import build_sdf, lookup_sdf
 from probeplace.placement import method_names, place
-from probeplace.placement._budget import count_for_memory, fill_order, fit_to_budget, parse_bytes, trim_order
+from probeplace.placement.space._budget import (
+    count_for_memory,
+    fill_order,
+    fit_to_budget,
+    parse_bytes,
+    trim_order,
+)
 
 # cheap options so that every method runs in seconds on the Cornell box
 CHEAP = {"vardis": {"dense_probes": 64, "n_dirs": 16, "spp": 1, "n_eval": 256}}

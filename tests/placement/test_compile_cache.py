@@ -12,8 +12,11 @@ import jax.numpy as jnp
 import numpy as np
 import pytest
 
-from probeplace.placement import FitnessConfig, _refine, _valid, _vardis, wang_fitness
-from probeplace.placement._refine import GibbsRefiner
+from probeplace.placement import FitnessConfig, wang_fitness
+from probeplace.placement.baselines import _vardis
+from probeplace.placement.refine import _refine
+from probeplace.placement.refine._refine import GibbsRefiner
+from probeplace.placement.space import _valid
 
 # compile time and compile counts as a fresh process sees them: no persistent compilation cache (issue 32)
 pytestmark = pytest.mark.usefixtures("no_persistent_cache")
@@ -86,9 +89,9 @@ def test_relocation_compiles_once(small):
     rng = np.random.default_rng(0)
     pts = [(lo + (hi - lo) * rng.uniform(0.05, 0.95, (16, 3))).astype(np.float32) for _ in range(2)]
     h = float(sdf.voxel_size)
-    _valid._relocate(sdf, pts[0], 2.0 * h, 16, lo, hi)
+    _valid.relocate_out(sdf, pts[0], 2.0 * h, 16, lo, hi)
     n = _n_traces(_valid._relocate_points)
-    q, ok = _valid._relocate(sdf, pts[1], 3.0 * h, 16, lo, hi)
+    q, ok = _valid.relocate_out(sdf, pts[1], 3.0 * h, 16, lo, hi)
     assert _n_traces(_valid._relocate_points) == n
     assert q.dtype == np.float32 and ok.dtype == bool
     # every relocated point that reports success is clear of the new clearance

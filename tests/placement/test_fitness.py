@@ -89,7 +89,7 @@ def test_views_coverage_counts_what_the_view_cameras_see(small, cornell):
     from probeplace._core import ConfigError
     from probeplace.geometry import SurfaceSamples
     from probeplace.placement import make_problem
-    from probeplace.placement._fitness import seen_from_views
+    from probeplace.placement.fitness._fitness import seen_from_views
     from probeplace.scene import build_scene
     from tests.geometry.raycast_reference import ray_triangle_t
 

@@ -1,4 +1,4 @@
-"""Reachable free space (``placement._reach``) and its use by the valid space and the budgets.
+"""Reachable free space (``placement.space._reach``) and its use by the valid space and the budgets.
 
 Oracles: a closed-form SDF of a hollow shell (a sealed cavity inside solid walls), with and without a slot
 through one wall, where which points a viewer can get to is known by construction; and the ``rooms``
@@ -16,8 +16,8 @@ import pytest
 
 from probeplace.geometry import SDFGrid
 from probeplace.placement import make_problem, make_valid, place
-from probeplace.placement._reach import reachable_space
-from probeplace.placement._valid import valid_candidates
+from probeplace.placement.space._reach import reachable_space
+from probeplace.placement.space._valid import valid_candidates
 
 H = 0.025
 C = 2 * H

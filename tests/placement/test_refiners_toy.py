@@ -14,8 +14,8 @@ import pytest
 from jax.test_util import check_grads
 
 from probeplace.placement import REFINERS, FitnessConfig
-from probeplace.placement._fitness import SHADING_FALLOFF, SHADING_TEMPERATURE, shading_objective
-from probeplace.placement._refine import get_refiner, make_box_problem, objective_fn
+from probeplace.placement.fitness._fitness import SHADING_FALLOFF, SHADING_TEMPERATURE, shading_objective
+from probeplace.placement.refine._refine import get_refiner, make_box_problem, objective_fn
 
 GRADIENT = [n for n in REFINERS if n not in ("gibbs", "ascent")]
 H = 1.0 / 16.0  # the toy lattice's voxel

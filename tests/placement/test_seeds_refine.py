@@ -30,7 +30,7 @@ def test_ball_shrinking_between_parallel_planes():
 
 
 def test_linear_inversion_sampling():
-    from probeplace.placement._refine import _sample_linear
+    from probeplace.placement.refine._refine import _sample_linear
 
     xi = jnp.asarray((np.arange(20000) + 0.5) / 20000)
     x = np.asarray(_sample_linear(jnp.zeros(()), jnp.ones(()), xi))

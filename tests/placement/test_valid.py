@@ -14,9 +14,10 @@ import pytest
 
 from probeplace._core import ConfigError
 from probeplace.geometry import SDFGrid, build_sdf, lookup_sdf
-from probeplace.placement import _uniform, _valid
-from probeplace.placement._region import Region
-from probeplace.placement._valid import default_clearance, make_valid, valid_candidates
+from probeplace.placement.baselines import _uniform
+from probeplace.placement.space import _valid
+from probeplace.placement.space._region import Region
+from probeplace.placement.space._valid import default_clearance, make_valid, valid_candidates
 
 # Hand-made scene: the unit box [0, 1]³ (placement box) holding one solid box.
 LO, HI = np.zeros(3), np.ones(3)
@@ -260,7 +261,7 @@ def test_valid_candidates(sdf):
 
 # ------------------------------------------------------------------------------------ uniform grid
 def test_uniform_relocation_is_the_shared_one(sdf):
-    assert _uniform._relocate is _valid._relocate
+    assert _uniform.relocate_out is _valid.relocate_out
     r = _uniform.uniform_probe_grid(bounds=(LO, HI), dims=(5, 5, 5), inside="relocate", sdf=sdf)
     assert r.n_inside > 0 and r.n_relocated == r.n_inside and r.n_failed == 0
     assert np.all(lookup_sdf(sdf, np.asarray(r.probes.pos_world)[r.relocated]) > H)

@@ -14,8 +14,8 @@ from probeplace.placement import (
     poisson_disk_probes,
     vardis_simplify,
 )
-from probeplace.placement._tetra import TetMesh
-from probeplace.placement._vardis import WEIGHT_PRESETS, Y00, YCOCG
+from probeplace.placement.baselines._tetra import TetMesh
+from probeplace.placement.baselines._vardis import WEIGHT_PRESETS, Y00, YCOCG
 
 
 def _interp(pos, pts):

@@ -30,7 +30,7 @@ def test_cli_refuses_vardis_on_a_scene_without_light(tmp_path, capsys, no_slow_w
 
 
 def test_place_vardis_refuses_before_the_sdf(monkeypatch):
-    import probeplace.placement._baselines as baselines
+    import probeplace.placement.baselines._methods as baselines
     from probeplace.placement import place
 
     def boom(*a, **k):

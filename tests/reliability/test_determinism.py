@@ -114,7 +114,7 @@ def test_fresh_process_gives_the_same_probe_sets(cornell, tmp_path):
 @pytest.mark.slow
 @pytest.mark.xfail(
     reason="medial seeds depend on jax_enable_x64 (~0.1 mm–1 mm moves in the Cornell box): some library "
-    "code in placement/_seeds.py is not float32-clean; reported to the lead",
+    "code in placement/skeleton/_seeds.py is not float32-clean; reported to the lead",
     strict=False,
 )
 def test_placement_does_not_depend_on_x64(tmp_path):

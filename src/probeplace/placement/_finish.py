@@ -23,14 +23,26 @@ import numpy as np
 
 from .._core import ConfigError, ProbeSet, Scene, scene_box, stream
 from ..geometry import AbstractRayCaster
-from ._binary import CoverageDetail, binary_coverage, binary_visibility, coverage_counts
-from ._budget import fit_to_budget
-from ._fitness import FitnessConfig, PlacementProblem, make_problem
-from ._reach import reachable_space, view_positions
-from ._refine import get_refiner
-from ._region import Region
 from ._registry import PlaceRequest, PlaceResult
-from ._valid import default_clearance, make_valid, valid_candidates
+from .fitness import (
+    CoverageDetail,
+    FitnessConfig,
+    PlacementProblem,
+    binary_coverage,
+    binary_visibility,
+    coverage_counts,
+    make_problem,
+)
+from .refine import get_refiner
+from .space import (
+    Region,
+    default_clearance,
+    fit_to_budget,
+    make_valid,
+    reachable_space,
+    valid_candidates,
+    view_positions,
+)
 
 
 @dataclass(frozen=True, eq=False)

@@ -16,14 +16,12 @@ import numpy as np
 
 from .._core import Scene, load_pyplot, stream
 from ..geometry import AbstractRayCaster, build_sdf
-from ._auto import auto_budget, reaches_target
-from ._binary import binary_coverage, binary_visibility
 from ._finish import coverage_context, make_usable, probe_set, refine_problem, valid_settings
-from ._fitness import FitnessConfig, probe_clearance
-from ._grid import grid_dims, uniform_grid
-from ._refine import get_refiner
 from ._registry import PlacementMethod, PlaceRequest, PlaceResult, get_method, register_method
-from ._seeds import medial_axis_seeds, skeleton_seeds
+from .fitness import FitnessConfig, binary_coverage, binary_visibility, probe_clearance
+from .refine import get_refiner
+from .skeleton import auto_budget, medial_axis_seeds, reaches_target, skeleton_seeds
+from .space import grid_dims, uniform_grid
 
 
 def place(

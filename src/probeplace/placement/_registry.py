@@ -50,7 +50,7 @@ class PlaceRequest:
 
     def __post_init__(self):
         """The checks of ``place``'s arguments (the experiment runner builds a request to run them too)."""
-        from ._refine import OBJECTIVES, REFINERS
+        from .refine import OBJECTIVES, REFINERS
 
         b = self.budget
         if b != "auto" and (isinstance(b, bool) or not isinstance(b, int) or b < 1):
@@ -67,7 +67,7 @@ class PlaceRequest:
         c = self.clearance
         if c is not None and (isinstance(c, bool) or not isinstance(c, (int, float)) or not c >= 0):
             raise ConfigError(f"clearance must be a non-negative distance (scene units) or None, got {c!r}")
-        from ._region import Region
+        from .space import Region
 
         Region.from_config(self.region)  # its errors name the bad key, before any work
 

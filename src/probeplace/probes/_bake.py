@@ -338,7 +338,7 @@ def probe_bytes(scene: Scene, config: BakeConfig) -> int:
     """Bytes one baked probe holds at ``config`` (its maps as :class:`LightFieldProbes` stores them: float32
     radiance, emission, irradiance, moments and distance, the two int16 normal components
     (``_core._packed``) and the back-face bytes, all with their one-texel borders; position and flags):
-    what a memory budget divides by (``placement._budget.count_for_memory``)."""
+    what a memory budget divides by (``placement.space._budget.count_for_memory``)."""
     res, geo = map_resolutions(scene, config)
     floats = 2 * (res + 2) ** 2 * 3  # radiance, emission
     floats += (config.irradiance_res + 2) ** 2 * 3 + (config.moments_res + 2) ** 2 * 2

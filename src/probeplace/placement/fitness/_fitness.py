@@ -63,18 +63,10 @@ import jax.numpy as jnp
 import numpy as np
 from jaxtyping import Array, Bool, Float
 
-from .._core import ConfigError, Scene, next_pow2, safe_norm
-from ..geometry import (
-    SDFGrid,
-    SurfaceSamples,
-    build_sdf,
-    lookup_sdf,
-    sample_surface,
-    sdf_value,
-)
+from ..._core import ConfigError, Scene, next_pow2, safe_norm
+from ...geometry import SDFGrid, SurfaceSamples, build_sdf, lookup_sdf, sample_surface, sdf_value
+from ..space import ReachableSpace, default_clearance, reachable_space, view_positions
 from ._field import tighten_sdf
-from ._reach import ReachableSpace, reachable_space, view_positions
-from ._valid import default_clearance
 
 
 def dynamic_float(v):
@@ -249,7 +241,7 @@ def seen_from_views(scene: Scene, samples: SurfaceSamples, *, two_sided: bool = 
     Raises:
         ConfigError: the scene has no views.
     """
-    from ..geometry import make_caster
+    from ...geometry import make_caster
 
     cams = view_positions(scene).reshape(-1, 3)
     if len(cams) == 0:

@@ -41,8 +41,8 @@ import dataclasses
 import jax.numpy as jnp
 import numpy as np
 
-from .._core import ConfigError, ProbeSet, Scene, scene_box
-from ..geometry import AbstractRayCaster, make_caster
+from ..._core import ConfigError, ProbeSet, Scene, scene_box
+from ...geometry import AbstractRayCaster, make_caster
 
 
 @dataclasses.dataclass(frozen=True, eq=False)

@@ -21,7 +21,7 @@ need it, so a valid probe comes back bit-identical):
   §3.1) and Unity APV's virtual offset push probes out of geometry: Newton steps along the SDF gradient,
   ``p ← p + (target − d(p))·∇d/|∇d|`` with target 1.5 × clearance, and a search along 128 directions at
   growing radii where the gradient is useless (deep inside thick solids), the nearer success winning
-  (:func:`_relocate`). The move stays inside the region box the probe is in (each one it is in is tried);
+  (:func:`relocate_out`). The move stays inside the region box the probe is in (each one it is in is tried);
 * **drop**: a probe that cannot reach the clearance inside the region (no free space within reach, e.g.
   deep in a solid that fills the box), or whose position is sealed off from the viewer (condition 4:
   ``unreachable``; it is not moved, since the nearest reachable point may be far — the budget fill puts
@@ -43,8 +43,8 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from .._core import ConfigError, Scene, next_pow2, scene_box
-from ..geometry import SDFGrid, lookup_sdf, sdf_value, sdf_value_and_grad
+from ..._core import ConfigError, Scene, next_pow2, scene_box
+from ...geometry import SDFGrid, lookup_sdf, sdf_value, sdf_value_and_grad
 from ._reach import ReachableSpace
 from ._region import Region
 
@@ -105,7 +105,7 @@ def fibonacci_directions(n: int) -> np.ndarray:
     return np.stack([r * np.cos(phi), r * np.sin(phi), z], axis=1).astype(np.float32)
 
 
-def _relocate(
+def relocate_out(
     sdf: SDFGrid, pos: np.ndarray, clearance: float, max_steps: int, lo: np.ndarray, hi: np.ndarray
 ) -> tuple[np.ndarray, np.ndarray]:
     """Move points to the nearest point with ``d > clearance`` inside [lo, hi]; (positions, reached).
@@ -359,7 +359,7 @@ def make_valid(
             m = len(inb)
             padded = np.repeat(start[inb[:1]].astype(np.float32), next_pow2(m, lo=8), axis=0)
             padded[:m] = start[inb]
-            q, ok = _relocate(sdf, padded, c, int(max_steps), *(b.astype(np.float64) for b in box))
+            q, ok = relocate_out(sdf, padded, c, int(max_steps), *(b.astype(np.float64) for b in box))
             q = q[:m].astype(dtype)
             # the host check of step 3 per piece, so a candidate failing it does not shadow another piece's
             ok = ok[:m] & (lookup_sdf(sdf, q).astype(np.float64) >= c)

@@ -14,7 +14,7 @@ from dataclasses import dataclass
 import jax.numpy as jnp
 import numpy as np
 
-from ..geometry import SDFGrid, trace_sdf_rays
+from ...geometry import SDFGrid, trace_sdf_rays
 from ._fitness import PlacementProblem, _texel_angle, probe_clearance
 
 _CHUNK = 1 << 16  # rays per jitted trace (SDF tracer, jittable casters): one compilation

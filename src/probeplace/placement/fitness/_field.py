@@ -22,7 +22,7 @@ import jax.numpy as jnp
 import numpy as np
 from scipy import ndimage
 
-from ..geometry import SDFGrid
+from ...geometry import SDFGrid
 
 
 def tighten_sdf(grid: SDFGrid) -> tuple[SDFGrid, np.ndarray]:

@@ -25,8 +25,8 @@ import functools
 
 import numpy as np
 
-from .._core import Scene
-from ..geometry import SDFGrid
+from ..._core import Scene
+from ...geometry import SDFGrid
 
 
 @dataclasses.dataclass(frozen=True, eq=False)

@@ -47,9 +47,9 @@ import jax.numpy as jnp
 import numpy as np
 from jaxtyping import Array, Bool, Float, Int
 
-from .._core import ConfigError, ProbeplaceError
-from ..geometry import SDFGrid, sdf_value
-from ._fitness import (
+from ..._core import ConfigError, ProbeplaceError
+from ...geometry import SDFGrid, sdf_value
+from ..fitness import (
     FitnessConfig,
     PlacementProblem,
     coverage_from_columns,

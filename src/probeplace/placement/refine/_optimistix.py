@@ -22,7 +22,7 @@ import jax.numpy as jnp
 import optax
 import optimistix as optx
 
-from ._fitness import dynamic_float
+from ..fitness import dynamic_float
 from ._refine import AbstractGradientRefiner, RefineResult, _check_pos, normalised_loss
 
 SOLVERS = ("bfgs", "nonlinear_cg", "adam")

@@ -25,8 +25,8 @@ import math
 import numpy as np
 from scipy import spatial
 
-from .._core import ConfigError
-from ._fitness import PlacementProblem
+from ..._core import ConfigError
+from ..fitness import PlacementProblem
 
 
 def _lattice_points(problem: PlacementProblem, idx: np.ndarray) -> np.ndarray:

@@ -40,10 +40,10 @@ import jax.numpy as jnp
 import numpy as np
 from jaxtyping import Array, Float
 
-from .._core import ConfigError, Scene, SceneError, next_pow2, scene_box
-from .._core._sh import sh_basis
+from ..._core import ConfigError, Scene, SceneError, next_pow2, scene_box
+from ..._core._sh import sh_basis
+from ..space import fibonacci_directions
 from ._tetra import RemovalPlan, TetMesh
-from ._valid import fibonacci_directions
 
 ERROR_MODES = ("sh", "directions", "average")
 # (w_Y, w_C) presets of Vardis et al. 2021 §2.
@@ -64,7 +64,7 @@ def check_vardis_light(scene: Scene) -> None:
     Raises:
         SceneError: one line naming the method, the scene and the sidecar keys that add light.
     """
-    from ..scene import no_light_hint
+    from ...scene import no_light_hint
 
     if not scene.has_light:
         raise SceneError(
@@ -116,7 +116,7 @@ def dense_probe_sh(
     Returns:
         (n, 9, 3) float32 coefficients.
     """
-    from ..render import trace_rays
+    from ...render import trace_rays
 
     pos = np.asarray(pos, np.float32).reshape(-1, 3)
     if len(pos) == 0:
@@ -143,7 +143,7 @@ def dense_probe_sh(
 
 
 def _sdf_values(sdf, pts: np.ndarray) -> np.ndarray:
-    from ..geometry import lookup_sdf
+    from ...geometry import lookup_sdf
 
     return lookup_sdf(sdf, pts).astype(np.float64)
 
@@ -156,7 +156,7 @@ def poisson_disk_probes(
     ``clearance``, default one voxel); (n, 3) float32."""
     from scipy.spatial import cKDTree
 
-    from ..geometry import build_sdf
+    from ...geometry import build_sdf
 
     if not (np.isfinite(radius) and radius > 0):
         raise ConfigError(f"radius must be a positive number, got {radius!r}")
@@ -205,7 +205,7 @@ def evaluation_points(
         sdf: SDF (built when needed).
         bounds: (lo, hi) box of ``"grid"`` and ``"surface"`` (default the scene box).
     """
-    from ..geometry import build_sdf, sample_surface
+    from ...geometry import build_sdf, sample_surface
 
     if not (isinstance(n, int | np.integer) and n >= 1):
         raise ConfigError(f"n must be a positive integer, got {n!r}")
@@ -230,7 +230,7 @@ def evaluation_points(
     h = float(sdf.voxel_size)
     k_s, k_c = jax.random.split(key)
     if kind == "surface":
-        from ..geometry import default_sample_spacing
+        from ...geometry import default_sample_spacing
 
         spacing = default_sample_spacing(scene)
         tri = np.asarray(scene.vertices, np.float64)[np.asarray(scene.faces)]
@@ -584,7 +584,7 @@ def vardis_simplify(
         ConfigError: bad shapes or options, no stopping rule.
     """
     n = _check_stopping(positions, target, tolerance, per_iteration)
-    from .._core._progress import progress_bar
+    from ..._core._progress import progress_bar
 
     t0 = time.perf_counter()
     mesh, scorer = _setup(positions, values, points, error, n_dirs, weights, tet_jitter, tet_seed)

@@ -16,12 +16,12 @@ from typing import Any
 
 import numpy as np
 
-from .._core import ConfigError, Scene, host_rng, scene_box, stream
-from ..geometry import build_sdf
-from ._finish import finish_lattice, usable_count, valid_settings
-from ._fitness import make_problem
-from ._place import _refining_grid_dims, smallest_full_grid, timed
-from ._registry import PlacementMethod, PlaceRequest, PlaceResult, register_method
+from ..._core import ConfigError, Scene, host_rng, scene_box, stream
+from ...geometry import build_sdf
+from .._finish import finish_lattice, usable_count, valid_settings
+from .._place import _refining_grid_dims, smallest_full_grid, timed
+from .._registry import PlacementMethod, PlaceRequest, PlaceResult, register_method
+from ..fitness import make_problem
 
 _ZERO3 = (0.0, 0.0, 0.0)
 

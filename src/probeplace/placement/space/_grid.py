@@ -9,7 +9,7 @@ import math
 
 import numpy as np
 
-from .._core import ConfigError
+from ..._core import ConfigError
 
 
 def grid_dims(lo: np.ndarray, hi: np.ndarray, spacing: float) -> tuple[int, int, int]:

@@ -16,7 +16,7 @@ from typing import Any
 import jax
 import numpy as np
 
-from .._core import ConfigError
+from ..._core import ConfigError
 
 #: Keys of a region config (``Region.from_config``).
 REGION_KEYS = ("boxes", "height", "floor")

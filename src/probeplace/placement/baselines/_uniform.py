@@ -16,8 +16,8 @@ black (the "classic failure"). Three choices (``inside=``):
 "Inside" means a negative signed distance at the probe (the SDF's sign contract, docs/sdf.md).
 
 Resolution is either per-axis counts (``dims``: probes at the cell centres of a dims split of the box,
-exactly :func:`probeplace.placement._grid.uniform_grid`) or a ``spacing`` (``⌈side/spacing⌉`` probes per
-axis, :func:`~probeplace.placement._grid.grid_dims`, spaced exactly ``spacing`` apart and centred in the
+exactly :func:`probeplace.placement.space._grid.uniform_grid`) or a ``spacing`` (``⌈side/spacing⌉`` probes per
+axis, :func:`~probeplace.placement.space._grid.grid_dims`, spaced exactly ``spacing`` apart and centred in the
 box). ``offset`` shifts the lattice by a fraction of a cell; ``jitter`` adds a uniform random offset of
 up to ``±jitter/2`` cells per probe and axis.
 """
@@ -30,12 +30,11 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from .._core import ConfigError, ProbeSet, Scene, scene_box
-from ..geometry import SDFGrid, build_sdf, lookup_sdf
-from ._grid import grid_dims, uniform_grid
+from ..._core import ConfigError, ProbeSet, Scene, scene_box
+from ...geometry import SDFGrid, build_sdf, lookup_sdf
 
 # The relocation lives with the rest of valid-space handling (docs/placement.md "Valid space").
-from ._valid import _relocate
+from ..space import grid_dims, relocate_out, uniform_grid
 
 INSIDE_CHOICES = ("keep", "disable", "relocate")
 
@@ -170,7 +169,7 @@ def uniform_probe_grid(
             raise ConfigError(f"clearance must be positive, got {clearance}")
         idx = np.flatnonzero(is_inside)
         lo, hi = (np.asarray(b, np.float64) for b in bounds)
-        moved, ok = _relocate(sdf, pos[idx], c, int(max_steps), lo, hi)  # type: ignore[arg-type]
+        moved, ok = relocate_out(sdf, pos[idx], c, int(max_steps), lo, hi)  # type: ignore[arg-type]
         pos = pos.copy()
         pos[idx[ok]] = moved[ok]
         relocated[idx[ok]] = True

@@ -40,10 +40,9 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from .._core import ConfigError, host_rng
-from ._binary import binary_visibility
-from ._fitness import PlacementProblem, probe_clearance, witness_positions
-from ._refine import AbstractRefiner
+from ..._core import ConfigError, host_rng
+from ..fitness import PlacementProblem, binary_visibility, probe_clearance, witness_positions
+from ..refine import AbstractRefiner
 from ._seeds import medial_axis_seeds, skeleton_seeds
 
 log = logging.getLogger(__name__)
