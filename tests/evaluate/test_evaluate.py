@@ -238,7 +238,7 @@ def test_bootstrap_relmse_and_agreement():
     lum = lambda x: x @ np.array([0.2126, 0.7152, 0.0722])
     eps = 0.01 * np.mean(lum(r)) ** 2
     assert relative_mse(p, r) == pytest.approx(np.mean((lum(p) - lum(r)) ** 2 / (lum(r) ** 2 + eps)))
-    # agreement over RAY_HIT rays only; an exact miss disagrees
+    # agreement over TraceStatus.HIT rays only; an exact miss disagrees
     st = np.array([1, 1, 1, 1, 0, 2])
     t_lf = np.array([1.0, 2.0, 3.0, 4.0, np.inf, 1.0])
     t_ex = np.array([1.01, 2.2, np.inf, 4.0, 5.0, 1.0])

@@ -143,8 +143,8 @@ def relative_mse(probe: np.ndarray, ref: np.ndarray, *, eps: float = 0.01) -> fl
 def hit_agreement(
     t_lf: np.ndarray, t_exact: np.ndarray, status: np.ndarray, *, rtol: float = 0.02, atol: float = 0.0
 ) -> tuple[float | None, int]:
-    """(share of RAY_HIT rays with a finite exact hit within |t_lf − t_exact| ≤ rtol·t_exact + atol —
-    an exact miss disagrees —, number of RAY_HIT rays); the share is None when there is none."""
+    """(share of TraceStatus.HIT rays with a finite exact hit within |t_lf − t_exact| ≤ rtol·t_exact + atol —
+    an exact miss disagrees —, number of TraceStatus.HIT rays); the share is None when there is none."""
     hit = np.asarray(status) == 1
     n = int(hit.sum())
     if n == 0:

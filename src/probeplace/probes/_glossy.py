@@ -83,7 +83,7 @@ _CHUNK = 1 << 14
 
 
 class GlossyResult(eqx.Module):
-    """Per ray: radiance read, tracer status (RAY_MISS / RAY_HIT / RAY_UNRESOLVED), distance t (inf on a
+    """Per ray: radiance read, tracer status (TraceStatus MISS / HIT / UNRESOLVED), distance t (inf on a
     miss; the last free point if unresolved), probe read (-1 on a miss) and the MIP level used."""
 
     radiance: Float[Array, "n 3"]
@@ -409,7 +409,7 @@ def glossy_radiance(
     directions: Float[Array, "n 3"],
     **kw,
 ) -> tuple[Float[Array, "n 3"], Int[Array, " n"]]:
-    """:func:`glossy_trace` → (radiance (n, 3), status (n,) RAY_MISS=0 / RAY_HIT=1 / RAY_UNRESOLVED=2)."""
+    """:func:`glossy_trace` → (radiance (n, 3), status (n,) TraceStatus MISS=0 / HIT=1 / UNRESOLVED=2)."""
     res = glossy_trace(tracer, lf, origins, directions, **kw)
     return res.radiance, res.status
 

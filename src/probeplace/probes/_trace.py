@@ -906,7 +906,7 @@ def trace_ray(
     (``_wavefront``) runs the same steps as a state machine and gives the same answers.
 
     Returns:
-        (status RAY_MISS / RAY_HIT / RAY_UNRESOLVED, t (inf on a miss; last free point if unresolved),
+        (status TraceStatus MISS / HIT / UNRESOLVED, t (inf on a miss; last free point if unresolved),
         probe, geometry texel (row, col) of the hit (of the cell where the last probe tried gave up if
         unresolved), march steps, probes tried, probes from the fallback search): int32 scalars but t
         (float) and texel (int32 (2,)), the fields of :class:`TraceResult`.
