@@ -63,7 +63,7 @@ def _check_run(cfg, res):
     assert probes.n_active == m["n_probes"] <= 2
     assert m["timings"]["place_s"] > 0
     # each probe's part in the coverage, beside probes.json (the viewer reads it without JAX)
-    with np.load(d / "coverage_detail.npz") as z:
+    with np.load(d / "probes.coverage.npz") as z:
         assert str(z["format"]) == "probeplace.CoverageDetail/1"
         assert z["seen"].shape == z["unique"].shape == (m["n_probes"],)
         assert float(z["coverage"]) == m["coverage"]

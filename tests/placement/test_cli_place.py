@@ -34,6 +34,30 @@ def test_place_writes_probe_set_and_png(tmp_path):
     json.dumps(meta)
 
 
+def test_place_writes_each_probe_s_part_in_the_coverage_for_the_viewer(tmp_path):
+    """Beside the probe set, ``<stem>.coverage.npz`` (``placement.CoverageDetail``): its coverage is the
+    record's, its counts add up to the coverable samples, and ``probeplace view``'s model reads it for the
+    bare probes file (coverage colours, uncovered points)."""
+    import numpy as np
+
+    from probeplace._core import load_probe_set
+    from probeplace.view import load_view_model, resolve_input
+
+    out = tmp_path / "p.json"
+    assert main(["place", "cornell_box", "--method", "grid", "--budget", "8", "--out", str(out)]) == 0
+    _, meta = load_probe_set(out)
+    with np.load(tmp_path / "p.coverage.npz") as z:
+        assert str(z["format"]) == "probeplace.CoverageDetail/1"
+        assert float(z["coverage"]) == meta["metadata"]["coverage"]
+        assert z["seen"].shape == (8,) and (z["unique"] <= z["seen"]).all()
+        assert z["unique"].sum() + int(z["n_multiple"]) + len(z["uncovered"]) == int(z["n_coverable"])
+    model = load_view_model(resolve_input(out))
+    assert model.coverage is not None and model.coverage.path == tmp_path / "p.coverage.npz"
+    np.testing.assert_array_equal(
+        model.values("coverage: samples it sees"), np.load(tmp_path / "p.coverage.npz")["seen"]
+    )
+
+
 def test_place_memory_budget_and_height_band(tmp_path):
     """``--memory-budget`` becomes the count its bake settings allow; ``--height-band`` keeps every probe
     in the band above the floor; both reach the record."""

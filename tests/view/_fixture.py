@@ -105,9 +105,9 @@ MSE = {"diffuse_indirect": 0.01, "glossy_indirect": 5e-5}
 
 
 def write_detail(folder: Path, *, evaluation: bool = True) -> None:
-    """``coverage_detail.npz`` beside probes.json and, with ``evaluation``, ``eval/probe_error.npz``."""
+    """``probes.coverage.npz`` beside probes.json and, with ``evaluation``, ``eval/probe_error.npz``."""
     np.savez_compressed(
-        folder / "coverage_detail.npz",
+        folder / "probes.coverage.npz",
         format=np.asarray("probeplace.CoverageDetail/1"),
         seen=SEEN,
         unique=UNIQUE,

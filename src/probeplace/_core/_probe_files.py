@@ -22,6 +22,8 @@ import numpy as np
 from ._errors import ProbeplaceError
 
 PROBE_SET_FORMAT = "probeplace.ProbeSet/1"
+#: Each probe's part in the placement's coverage (``placement.CoverageDetail``), beside its probe set.
+COVERAGE_DETAIL_FORMAT = "probeplace.CoverageDetail/1"
 #: The baked maps' layout; version 1 stored float32 normal maps (``probes._io`` packs them on load).
 LIGHT_FIELD_FORMAT = "probeplace.LightFieldProbes/2"
 LIGHT_FIELD_FORMAT_V1 = "probeplace.LightFieldProbes/1"
@@ -37,6 +39,13 @@ class ProbeSetDoc:
     method: str
     units_m: float
     doc: dict
+
+
+def coverage_detail_path(probe_set_file: str | os.PathLike) -> Path:
+    """Where a probe set's coverage detail lies: beside the file, ``<stem>.coverage.npz`` (``probes.json``
+    → ``probes.coverage.npz``). ``probeplace place`` and the experiment runner write it; ``probeplace
+    view`` reads it."""
+    return Path(probe_set_file).with_suffix(".coverage.npz")
 
 
 def read_json_doc(path: str | os.PathLike, what: str = "probe file") -> dict:

@@ -172,12 +172,14 @@ def _fill_export_parser(e: argparse.ArgumentParser) -> None:
 
 # --- place (placement helper) ---
 def _cmd_place(args: argparse.Namespace) -> int:
-    """Place probes (``placement.place``), write the top view and then the probe set (last: a probe set
-    on disk means the command finished)."""
+    """Place probes (``placement.place``), write the top view, each probe's part in the coverage
+    (``<out stem>.coverage.npz``, for ``probeplace view``) and then the probe set (last: a probe set on
+    disk means the command finished)."""
     from .._core import save_probe_set
     from .._core._checks import check_writable_file
     from .._core._io import naming_the_file
-    from ..placement import FitnessConfig, place, save_top_view
+    from .._core._probe_files import coverage_detail_path
+    from ..placement import FitnessConfig, place, result_coverage_detail, save_top_view
     from ..scene import load_scene
     from ._scene_options import scene_overrides_from_args
 
@@ -202,12 +204,17 @@ def _cmd_place(args: argparse.Namespace) -> int:
         config=FitnessConfig(coverage=args.coverage),
     )
     summary = f"{res.n_probes} probes, coverage {res.coverage:.4f}"
+    detail, detail_path = result_coverage_detail(res), coverage_detail_path(out)
     try:
         with naming_the_file(png):  # a full disk fails savefig's write() naming no file
             save_top_view(scene, res.probes.pos_world, png, title=f"{args.scene}: {summary}")
+        if detail is not None:
+            with naming_the_file(detail_path):
+                detail.save(detail_path)
         save_probe_set(out, res.probes, units_m=scene.unit_m, metadata={**res.metadata, "scene": args.scene})
-    except BaseException:  # interrupted or failed: leave no top view without its probe set
+    except BaseException:  # interrupted or failed: leave no top view or detail without its probe set
         png.unlink(missing_ok=True)
+        detail_path.unlink(missing_ok=True)
         raise
     print(f"{summary}, {res.timings['total_s']:.1f} s -> {out}, {png}")
     return 0

@@ -2,7 +2,7 @@
 
 Stages: load the scene (optionally offset/rotated) → place (timed) → bake (timed, progress bar) →
 evaluate (when ``probeplace.evaluate`` provides it) → export (optional) → write ``config.yaml``,
-``metrics.json``, ``env.json``, the probe set and its ``coverage_detail.npz``, the baked probes, images
+``metrics.json``, ``env.json``, the probe set and its ``probes.coverage.npz``, the baked probes, images
 and ``DONE``.
 
 **Timings** (``metrics.json`` ``timings``, seconds). Every timed stage ``X`` of ``place``, ``bake`` and
@@ -43,8 +43,6 @@ from ._schema import (
 log = logging.getLogger(__name__)
 
 #: Beside ``probes.json``: each probe's part in the coverage and the uncovered samples (docs/view.md).
-COVERAGE_DETAIL = "coverage_detail.npz"
-COVERAGE_DETAIL_FORMAT = "probeplace.CoverageDetail/1"
 
 
 class EvaluationUnavailable(ProbeplaceError):
@@ -452,7 +450,8 @@ def _place_stage(cfg: ExperimentConfig, scene, translation, partial: Path, final
     import jax
 
     from .._core import save_probe_set
-    from ..placement import FitnessConfig, place, save_top_view
+    from .._core._probe_files import coverage_detail_path
+    from ..placement import FitnessConfig, place, result_coverage_detail, save_top_view
 
     with _timed(timings, "place"):
         placed = place(
@@ -484,28 +483,12 @@ def _place_stage(cfg: ExperimentConfig, scene, translation, partial: Path, final
     metrics["inside_geometry"] = _inside_sdf(scene, pos)
     save_probe_set(partial / "probes.json", probes, units_m=scene.unit_m, metadata=_jsonable(placed.metadata))
     t0 = time.perf_counter()
-    _write_coverage_detail(partial / COVERAGE_DETAIL, placed)
+    detail = result_coverage_detail(placed)  # its own visibility pass, else one more (not place_s)
+    if detail is not None:
+        detail.save(coverage_detail_path(partial / "probes.json"))
     timings["coverage_detail_s"] = time.perf_counter() - t0
     save_top_view(scene, pos, partial / "top_view.png", title=f"{final.name}: {len(pos)} probes")
     return probes
-
-
-def _write_coverage_detail(path: Path, placed) -> None:
-    """Each probe's part in the coverage (``placement.coverage_detail``: seen / unique counts and area
-    shares, the uncovered samples) as ``path``, an ``.npz`` the viewer reads without JAX. The placement's
-    own visibility pass gives it when it measured the final set; else one more pass (untimed by
-    ``place_s``: it is not the method's cost)."""
-    from .._core import write_atomic
-    from ..placement import coverage_detail
-
-    detail = placed.coverage_detail
-    if detail is None and placed.coverage_context is not None:
-        active = np.asarray(placed.probes.active, bool)
-        detail = coverage_detail(placed.coverage_context, np.asarray(placed.probes.pos_world)[active])
-    if detail is None:  # a method that measured no coverage context
-        return
-    arrays = {"format": np.asarray(COVERAGE_DETAIL_FORMAT), **detail.arrays()}
-    write_atomic(path, lambda f: np.savez_compressed(f, **arrays))
 
 
 def _check_tracer_fits(cfg: ExperimentConfig, scene, probes) -> None:

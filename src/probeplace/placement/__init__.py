@@ -11,6 +11,7 @@ Each group's ``__init__`` is its face for the rest of the stage; this one is the
 from ._finish import CoverageContext as CoverageContext
 from ._finish import coverage_context as coverage_context
 from ._finish import coverage_detail as coverage_detail
+from ._finish import result_coverage_detail as result_coverage_detail
 from ._place import place as place
 from ._place import save_top_view as save_top_view
 from ._place import smallest_full_grid as smallest_full_grid

@@ -86,6 +86,17 @@ def coverage_detail(cov: CoverageContext, pos) -> CoverageDetail:
     return cov.measure(np.asarray(pos, np.float32).reshape(-1, 3))[1]
 
 
+def result_coverage_detail(result: PlaceResult) -> CoverageDetail | None:
+    """Each probe's part in a placement's coverage: the detail the method measured from the final set's
+    visibility, else one visibility pass with the result's coverage context (None without one)."""
+    if result.coverage_detail is not None:
+        return result.coverage_detail
+    if result.coverage_context is None:
+        return None
+    active = np.asarray(result.probes.active, bool)
+    return coverage_detail(result.coverage_context, np.asarray(result.probes.pos_world)[active])
+
+
 def coverage_context(scene: Scene, request: PlaceRequest, sdf) -> CoverageContext:
     """The coverage problem and caster of ``request`` (module docstring, step 3)."""
     problem = make_problem(

@@ -15,13 +15,11 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from .._core._errors import ProbeplaceError
-from .._core._probe_files import read_light_field_arrays
+from .._core._probe_files import coverage_detail_path, read_light_field_arrays
 from ..export import ExportError, ExportProbes, read_probes
 
 PROBES_JSON = "probes.json"
 BAKED_NPZ = "probes_baked.npz"
-#: beside probes.json (experiment runner): each probe's part in the coverage, the uncovered samples
-COVERAGE_NPZ = "coverage_detail.npz"
 #: in eval/ (``evaluate.write_evaluation``): each probe's share of the error
 PROBE_ERROR_NPZ = "probe_error.npz"
 CONFIG_YAML = "config.yaml"
@@ -42,8 +40,8 @@ class ViewInput:
             ``config.yaml`` (``run_config``) says it.
         run_config: a run folder's ``config.yaml`` as a dict, or None.
         metadata: the probe file's metadata (placement record: which probes were relocated / filled).
-        coverage_path: a run folder's ``coverage_detail.npz``, or None (a run of an older version, or a
-            bare probes file).
+        coverage_path: the probe set's ``<stem>.coverage.npz`` (``_core._probe_files.coverage_detail_path``:
+            ``probeplace place`` and the runner write it), or None (an older version's, an engine file).
     """
 
     path: Path
@@ -79,7 +77,9 @@ def resolve_input(path: str | os.PathLike, scene: str | None = None) -> ViewInpu
             "(see probeplace scenes)"
         )
     check_scene_found(name, "--scene" if scene else f"{p} (the scene it records)")
-    return ViewInput(p, probes, p, baked, None, name, None, dict(probes.metadata))
+    coverage = coverage_detail_path(p)  # beside a probe set of `probeplace place`
+    meta = dict(probes.metadata)
+    return ViewInput(p, probes, p, baked, None, name, None, meta, coverage if coverage.is_file() else None)
 
 
 def _run_folder(d: Path, scene: str | None) -> ViewInput:
@@ -114,7 +114,7 @@ def _run_folder(d: Path, scene: str | None) -> ViewInput:
         check_scene_found(name, f"{cfg_path} (scene.name)")
     baked = d / BAKED_NPZ
     eval_dir = d / "eval"
-    coverage = d / COVERAGE_NPZ
+    coverage = coverage_detail_path(probes_path)
     return ViewInput(
         d,
         probes,

@@ -13,8 +13,9 @@ from pathlib import Path
 
 import numpy as np
 
+from .._core._probe_files import coverage_detail_path
 from ..export import read_light_field_npz, sh_irradiance, texel_solid_angles
-from ._input import COVERAGE_NPZ, PROBE_ERROR_NPZ, ViewInput
+from ._input import PROBE_ERROR_NPZ, ViewInput
 from ._maps import exposure_white
 
 #: Probe status codes, their legend and colours (saturated cyan / magenta / grey / gold / blue / violet:
@@ -109,7 +110,7 @@ class Baked:
 
 @dataclass(frozen=True)
 class CoverageLayer:
-    """Each shown probe's part in the placement's coverage (``coverage_detail.npz``, counted over the
+    """Each shown probe's part in the placement's coverage (``<probe set>.coverage.npz``, counted over the
     coverage problem's coverable surface samples: ``placement.coverage_detail``).
 
     Attributes:
@@ -317,9 +318,10 @@ def _npz(path: Path) -> dict | None:
 def _coverage(inp: ViewInput, n: int) -> tuple[CoverageLayer | None, str]:
     """(the coverage layer or None, a line saying what it is or why it is missing)."""
     if inp.coverage_path is None:
-        if inp.run_config is None:
-            return None, "not recorded: coverage_detail.npz comes with a run folder of experiments/run.py"
-        return None, f"not recorded: this run has no {COVERAGE_NPZ} (an older version); {RERUN}"
+        want = coverage_detail_path(inp.probes_path).name
+        if inp.run_config is None and inp.probes_path.suffix != ".json":
+            return None, f"not recorded: {want} comes with a probe set of probeplace place or a run folder"
+        return None, f"not recorded: no {want} beside {inp.probes_path.name} (an older version); {RERUN}"
     z = _npz(inp.coverage_path)
     keys = {"seen", "unique", "uncovered_pos", "n_coverable", "coverage"}
     if z is None or not keys <= set(z):

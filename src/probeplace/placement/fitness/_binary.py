@@ -166,6 +166,15 @@ class CoverageDetail:
     n_coverable: int
     coverage: float
 
+    def save(self, path) -> None:
+        """Write the detail as an ``.npz`` (atomically): :meth:`arrays` and ``format`` =
+        ``probeplace.CoverageDetail/1``, read by ``probeplace view`` without JAX."""
+        from ..._core import write_atomic
+        from ..._core._probe_files import COVERAGE_DETAIL_FORMAT
+
+        arrays = {"format": np.asarray(COVERAGE_DETAIL_FORMAT), **self.arrays()}
+        write_atomic(path, lambda f: np.savez_compressed(f, **arrays))
+
     def arrays(self) -> dict[str, np.ndarray]:
         """The detail as named arrays (``np.savez``; scalars as 0-d arrays): the keys are the attribute
         names (docs/placement.md "Coverage detail")."""
