@@ -53,6 +53,7 @@ from ._report_data import (
     PRIMARY,
     black_mse,
     cells,
+    comparator,
     compile_s,
     count_cells,
     full_coverage,
@@ -251,7 +252,7 @@ def _memory_tiers(rs: list[dict]) -> tuple[list[float], bool]:
     shared = sorted(b for b, labs in by_bytes.items() if len(labs) > 1)
     if shared:
         return shared, True
-    ref = [memory(r) for r in rs if r["label"] == "grid" and memory(r) is not None] or list(by_bytes)
+    ref = [memory(r) for r in rs if r["label"] == comparator() and memory(r) is not None] or list(by_bytes)
     return ([float(np.median(ref))] if ref else []), False
 
 
@@ -291,7 +292,7 @@ def _paired_table(rs, labels, scene, count: int, twins: dict) -> list[str]:
     """At exactly ``count`` probes (exact budgets): each method ÷ the grid on the same seed, glossy and
     diffuse indirect, with the seed interval (:func:`seed_paired_ratio`) and the usable probes."""
     at = [r for r in rs if r["n_probes"] == count]
-    grid = {r["seed"]: r for r in at if r["label"] == "grid"}
+    grid = {r["seed"]: r for r in at if r["label"] == comparator()}
     md = [
         "",
         f"## {scene}: exactly {count} probes, each seed against the grid's run on the same seed",
@@ -343,7 +344,7 @@ def _equal_time_table(rs, labels, scene, g_time: float, g_count: int, g_mse: flo
     for lab, by_n in ((lab, by_label.get(lab)) for lab in labels):
         if not by_n:
             continue
-        if lab == "grid":
+        if lab == comparator():
             ok = {g_count: by_n[g_count]}
         else:
             ok = {n: c for n, c in by_n.items() if (t := median_run_s(c)) is not None and t <= g_time}
@@ -391,7 +392,7 @@ def _scene_tables(runs: list[dict], labels: list[str], scene: str, twins: dict) 
     """One scene's equal-count, equal-memory, equal-time and equal-quality tables (all but equal memory
     measured against the grid's cell at its count: the geometric mean of its runs there)."""
     rs = [r for r in runs if r["scene"] == scene and mse(r) is not None]
-    grid = [r for r in rs if r["label"] == "grid"]
+    grid = [r for r in rs if r["label"] == comparator()]
     memory_md = _equal_memory_table(rs, labels, scene, twins)
     if not rs or not grid:
         return [

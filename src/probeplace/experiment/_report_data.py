@@ -216,6 +216,14 @@ def count_cells(rs: list[dict]) -> dict:
     return out
 
 
+def comparator() -> str:
+    """The label every report table compares against: the first reference baseline of the placement
+    registry (``placement.reference_methods``: the uniform grid)."""
+    from ..placement import reference_methods
+
+    return reference_methods()[0]
+
+
 def grid_count(grid: list[dict]) -> int:
     """The grid's probe count the report compares at (its equal-count table, report.html's images): its
     measured count nearest (log) to the median of its counts (a count it really ran, so equal counts are

@@ -29,7 +29,7 @@ from pathlib import Path
 
 import numpy as np
 
-from ._report_data import grid_count, mse, pose, words
+from ._report_data import comparator, grid_count, mse, pose, words
 
 #: Narrowest an image is shown (CSS px): a 64 × 64 evaluation is too small to judge at its own size.
 MIN_CSS_PX = 256
@@ -86,7 +86,7 @@ def representative_runs(runs: list[dict], scene: str, labels: list[str]) -> list
     rs = [r for r in rs if r["n_probes"] > 0]  # an empty placement has nothing to show
     if not rs:
         return []
-    grid = [r for r in rs if r["label"] == "grid"]
+    grid = [r for r in rs if r["label"] == comparator()]
     counts = [r["n_probes"] for r in rs]
     count = grid_count(grid) if grid else max(sorted(set(counts)), key=counts.count)
     reps = []
