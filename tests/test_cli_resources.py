@@ -9,7 +9,6 @@ import errno
 import os
 import shutil
 import tempfile
-import types
 from pathlib import Path
 
 import jax.numpy as jnp
@@ -175,10 +174,11 @@ class _FullDisk:
 
 
 def _fake_place(*a, **k):
+    """A placement of two probes with no coverage context (so ``place`` writes no coverage detail)."""
+    from probeplace.placement import PlaceRequest, PlaceResult
+
     probes = ProbeSet(pos_world=jnp.asarray(POS, jnp.float32), active=jnp.ones(len(POS), bool))
-    return types.SimpleNamespace(
-        n_probes=2, coverage=1.0, probes=probes, metadata={}, timings={"total_s": 0.0}
-    )
+    return PlaceResult(probes, "grid", PlaceRequest(), 1.0, "fake", {"total_s": 0.0})
 
 
 def test_disk_full_while_writing_names_the_file_and_leaves_nothing(tmp_path, capsys, monkeypatch):
