@@ -20,7 +20,7 @@ device; with one it holds ``gpu_*`` figures: the 1920×1080-ray trace time and t
 frame time (one GGX-like secondary ray per pixel traced through the probes and read from the baked maps),
 to set beside McGuire 2017's 4.4 ms (Living Room, GTX 1080).
 
-Wavefront engine (``probes/_wavefront.py``, ``TraceConfig(engine="wavefront")``) on the same rays and
+Wavefront engine (``probes/tracer/_wavefront.py``, ``TraceConfig(engine="wavefront")``) on the same rays and
 settings as the per-ray hi-Z trace, timed interleaved with it: ``wavefront_vs_reference_cornell`` /
 ``_sponza`` = its rays/s ÷ the per-ray engine's (medians; target ≥ 10; both engines' rays/s are in
 ``cornell_*_rays_per_s`` and the per-scene blocks), ``lane_utilisation`` = march steps ÷ executed
@@ -58,7 +58,7 @@ from probeplace.probes import (
     make_tracer,
     trace_light_field,
 )
-from probeplace.probes._wavefront import trace_wavefront
+from probeplace.probes.tracer._wavefront import trace_wavefront
 
 
 def _unit(v):
@@ -169,7 +169,8 @@ def wavefront_agreement(per_ray, wf) -> dict:
     """How far the wavefront engine's answers are from the per-ray engine's: rays whose integer fields
     (status, probe, texel, steps, probes tried, fallback) differ, and the largest difference in t. Both
     can be non-zero through float32 rounding alone: the engines are different XLA programs, contracted
-    into FMAs differently (``probes/_wavefront.py``), and a rounding can move a cell crossing by a step."""
+    into FMAs differently (``probes/tracer/_wavefront.py``), and a rounding can move a cell crossing by a
+    step."""
     differ = np.zeros(len(np.asarray(per_ray.status)), bool)
     for f in ("status", "probe", "texel", "steps", "probes_tried", "fallback"):
         a, b = np.asarray(getattr(per_ray, f)), np.asarray(getattr(wf, f))

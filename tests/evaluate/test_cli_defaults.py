@@ -17,7 +17,7 @@ from probeplace.experiment import bake_config as runner_bake_config
 from probeplace.experiment import eval_config as runner_eval_config
 from probeplace.experiment import to_config
 from probeplace.probes import BakeConfig
-from probeplace.probes._trace import ENGINES
+from probeplace.probes.tracer._trace import ENGINES
 from tests.experiment._util import compose
 from tests.test_cli_checks import probe_json, refused
 

@@ -22,7 +22,7 @@ Tolerance: ``K_SIGMA`` standard errors of the mean difference, from
 The light-field *trace* (glossy rays) must not lose energy either: no ray can leave a closed box, so a
 miss is an error. It is checked against the *perfect trace* (exact hit, radiance read from the same probes
 there: the same baked texels, so the bake noise cancels). Before the tracer bounded a corner texel by both
-walls' planes (``probes._march._partners``) 7 % of the furnace's glossy rays slipped out as misses
+walls' planes (``probes.tracer._march._partners``) 7 % of the furnace's glossy rays slipped out as misses
 (−6.9 % glossy energy); now −0.6 %, within the noise.
 
 Slow cases (scenes with one emitter, where probes do have representational error) are at the end.

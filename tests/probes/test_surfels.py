@@ -1,12 +1,12 @@
-"""The light-field tracer's cell cones and closed-form plane bounds (``probes._surfels``, issue 33) against
-dense float64 samples of the cells they bound."""
+"""The light-field tracer's cell cones and closed-form plane bounds (``probes.tracer._surfels``, issue 33)
+against dense float64 samples of the cells they bound."""
 
 from __future__ import annotations
 
 import numpy as np
 import pytest
 
-from probeplace.probes._surfels import _bounds, _octahedron_point64, cell_cones
+from probeplace.probes.tracer._surfels import _bounds, _octahedron_point64, cell_cones
 
 
 def _cell_samples(m: int, rows, cols, k: int, rng) -> np.ndarray:

@@ -25,8 +25,8 @@ from probeplace.probes import (
     trace_light_field,
     trace_probe,
 )
-from probeplace.probes._index import VoxelIndex
-from probeplace.probes._trace import _seeing_probe
+from probeplace.probes.tracer._index import VoxelIndex
+from probeplace.probes.tracer._trace import _seeing_probe
 from probeplace.scene import build_scene, make_materials
 from probeplace.scene._primitives import box
 
@@ -424,8 +424,8 @@ def test_cell_bounds_per_quadrant_agree_with_the_simple_form(sub):
     ``probe_cells_reference`` (every bound on every cell) on the Cornell box, whose blocks give silhouettes,
     concave and convex creases: the same ambiguous cells, and bounds that are minima of the same closed-form
     cone bounds (equal up to the rounding of fused arithmetic: 1e-6 relative)."""
-    from probeplace.probes._surfels import cell_cones, probe_cells, probe_cells_reference
-    from probeplace.probes._trace import _geometry_maps
+    from probeplace.probes.tracer._surfels import cell_cones, probe_cells, probe_cells_reference
+    from probeplace.probes.tracer._trace import _geometry_maps
     from probeplace.scene import load_scene
 
     scene = load_scene("cornell_box")
@@ -475,8 +475,8 @@ def test_compact_maps_hold_the_flags_and_bound_the_bounds(occluder):
     upper-bound code one at or above its max-MIP bound (outward, so a looser bound costs a step and never
     changes an answer), the nearest such entry or the next (NumPy's search is the oracle); has-surface is
     ``surfel_r > 0``."""
-    from probeplace.probes._surfels import cell_cones, interleave_quadrants
-    from probeplace.probes._trace import _bound_codes, _mip_flat, _probe_cells
+    from probeplace.probes.tracer._surfels import cell_cones, interleave_quadrants
+    from probeplace.probes.tracer._trace import _bound_codes, _mip_flat, _probe_cells
 
     scene, lf = occluder
     cfg = TraceConfig()

@@ -16,7 +16,7 @@ import pytest
 from probeplace._core import ConfigError
 from probeplace.geometry import BruteForceCaster
 from probeplace.probes import TraceConfig, TraceStatus, make_tracer, trace_light_field
-from probeplace.probes._index import grid_index, voxel_index
+from probeplace.probes.tracer._index import grid_index, voxel_index
 from probeplace.scene import load_scene
 
 from .test_trace import R_CORNELL, _bake, _unit

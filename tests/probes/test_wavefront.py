@@ -1,4 +1,4 @@
-"""The wavefront engine (``probes/_wavefront.py``) against the per-ray engine on the same rays.
+"""The wavefront engine (``probes/tracer/_wavefront.py``) against the per-ray engine on the same rays.
 
 Oracle: the per-ray engine (``trace_ray``), which runs the same per-step functions in nested loops. Every
 integer field of ``TraceResult`` (status, probe, texel, march steps, probes tried, fallback count) must be
@@ -26,7 +26,7 @@ from probeplace.probes import (
     make_tracer,
     trace_light_field,
 )
-from probeplace.probes._index import voxel_index
+from probeplace.probes.tracer._index import voxel_index
 from probeplace.scene import load_scene
 from tests.helpers import grid_probe_set, shared_scene_path
 

@@ -6,8 +6,8 @@ instead of 16: what lets a Sponza 16×8×8 grid's maps (1024 probes at 512²) fi
 
 Why the distance stays float32 although Wang et al. 2019 §5 store R16F: tried (float16 of the distance
 over a power-of-two scale, issue 33), the light-field tracer's neighbour tests between adjacent surfels
-(``probes._surfels``: creases, ambiguous cells, ``edge_tol``) read float16's 4.9e-4 relative rounding as
-steps between texels of one plane — a single probe in a closed room resolved 85 % of rays on its planar
+(``probes.tracer._surfels``: creases, ambiguous cells, ``edge_tol``) read float16's 4.9e-4 relative rounding
+as steps between texels of one plane — a single probe in a closed room resolved 85 % of rays on its planar
 walls instead of over 94 % (``tests/probes/test_trace.py::test_single_probe_hits_planar_walls_exactly``).
 
 - **Normal**: octahedral ``uv`` (``oct_encode``) rounded to int16 (× 32767); read back with

@@ -1,4 +1,5 @@
-"""probes stage: light-field probe baking (McGuire et al. 2017), pre-filtering, save/load."""
+"""probes stage: light-field probe baking (McGuire et al. 2017), pre-filtering, shading, save/load; the
+light-field tracer in ``tracer/`` (its ``__init__`` the group's face)."""
 
 from .._core import BakeSettings as BakeSettings
 from ._bake import DEFAULT_EVAL_MAX_DEPTH as DEFAULT_EVAL_MAX_DEPTH
@@ -19,15 +20,8 @@ from ._bake import path_traced_radiance as path_traced_radiance
 from ._bake import probe_bytes as probe_bytes
 from ._bake_samples import BakeSamples as BakeSamples
 from ._bake_samples import choose_bake_spp as choose_bake_spp
-from ._engine import trace_light_field as trace_light_field
 from ._filter import distance_moments as distance_moments
 from ._filter import irradiance_map as irradiance_map
-
-# --- tracing and shading ---
-from ._index import GridIndex as GridIndex
-from ._index import VoxelIndex as VoxelIndex
-from ._index import grid_index as grid_index
-from ._index import voxel_index as voxel_index
 from ._inside import face_normals as face_normals
 from ._inside import host_closest_hit as host_closest_hit
 from ._inside import points_in_solid as points_in_solid
@@ -35,19 +29,26 @@ from ._inside import probes_inside as probes_inside
 from ._io import load_probes as load_probes
 from ._io import save_probes as save_probes
 from ._plot import save_contact_sheet as save_contact_sheet
-from ._seen import origins_seen as origins_seen
-from ._status import TraceStatus as TraceStatus
-from ._trace import LightFieldTracer as LightFieldTracer
-from ._trace import TraceConfig as TraceConfig
-from ._trace import TraceResult as TraceResult
-from ._trace import bound_table as bound_table
-from ._trace import check_tracer_memory as check_tracer_memory
-from ._trace import make_tracer as make_tracer
-from ._trace import trace_probe as trace_probe
-from ._trace import trace_ray as trace_ray
-from ._trace import tracer_bytes as tracer_bytes
-from ._wavefront import WavefrontStats as WavefrontStats
-from ._wavefront import trace_wavefront as trace_wavefront
+
+# --- tracing and shading ---
+from .tracer import GridIndex as GridIndex
+from .tracer import LightFieldTracer as LightFieldTracer
+from .tracer import TraceConfig as TraceConfig
+from .tracer import TraceResult as TraceResult
+from .tracer import TraceStatus as TraceStatus
+from .tracer import VoxelIndex as VoxelIndex
+from .tracer import WavefrontStats as WavefrontStats
+from .tracer import bound_table as bound_table
+from .tracer import check_tracer_memory as check_tracer_memory
+from .tracer import grid_index as grid_index
+from .tracer import make_tracer as make_tracer
+from .tracer import origins_seen as origins_seen
+from .tracer import trace_light_field as trace_light_field
+from .tracer import trace_probe as trace_probe
+from .tracer import trace_ray as trace_ray
+from .tracer import trace_wavefront as trace_wavefront
+from .tracer import tracer_bytes as tracer_bytes
+from .tracer import voxel_index as voxel_index
 
 # --- shading (EVAL helper, issue 4) ---
 # isort: split

@@ -67,9 +67,7 @@ from .._core import (
     texel_of_direction,
     texel_solid_angles,
 )
-from ._engine import trace_light_field
-from ._status import TraceStatus
-from ._trace import LightFieldTracer
+from .tracer import LightFieldTracer, TraceStatus, trace_light_field
 
 GLOSSY_FILTERS = ("texel", "bilinear", "mip", "depth_aware")
 #: The filter of every glossy read unless one is chosen (the evaluation's too, ``EvalConfig.glossy_filter``):

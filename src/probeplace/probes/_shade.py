@@ -50,7 +50,7 @@ from .._core import (
 )
 from .._core._sh import COSINE_LOBE, sh_basis
 from ._glossy import glossy_radiance
-from ._index import GridIndex, VoxelIndex, grid_index, voxel_index
+from .tracer import GridIndex, VoxelIndex, grid_index, voxel_index
 
 SHADINGS = ("lightfield", "irradiance", "sh")
 _CHUNK = 1 << 14

@@ -11,7 +11,7 @@ import jax
 import jax.numpy as jnp
 from jaxtyping import Array, Float, Int
 
-from .._core import norm3
+from ..._core import norm3
 from ._status import TraceStatus
 from ._surfels import NEIGHBOURS, crease
 

@@ -25,7 +25,7 @@ import numpy as np
 from jaxtyping import Array, Float, Int
 from scipy.spatial import cKDTree
 
-from .._core import ConfigError, LightFieldProbes, oct_encode, strip_border, texel_directions
+from ..._core import ConfigError, LightFieldProbes, oct_encode, strip_border, texel_directions
 
 
 class GridIndex(eqx.Module):

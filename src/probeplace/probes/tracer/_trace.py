@@ -72,7 +72,7 @@ import numpy as np
 from jaxtyping import Array, Bool, Float, Int, Shaped, UInt8, UInt16
 from scipy.spatial import cKDTree
 
-from .._core import (
+from ..._core import (
     ConfigError,
     LightFieldProbes,
     add_border,
@@ -81,8 +81,8 @@ from .._core import (
     oct_encode,
     texel_directions,
 )
-from .._core._progress import progress_bar
-from ._bake import _warn_probe_layout
+from ..._core._progress import progress_bar
+from .._bake import _warn_probe_layout
 from ._index import GridIndex, VoxelIndex, grid_index, nearest_index, voxel_index
 from ._march import _candidates, _partners, trace_probe
 from ._status import TraceStatus
