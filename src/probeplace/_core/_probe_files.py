@@ -1,6 +1,8 @@
-"""The two probe files the pipeline writes, read in one place: the ProbeSet JSON (``probeplace place``,
-``_probe_io``) and the baked light-field ``.npz`` (``probes.save_probes``). NumPy only, so that the
-NumPy-only ``export`` stage reads them with the same tags and checks as the JAX stages.
+"""The probe files the pipeline writes, named and read in one place: the ProbeSet JSON (``probeplace
+place``, ``_probe_io``) and the baked light-field ``.npz`` (``probes.save_probes``), parsed here; the
+per-probe sidecars' names and tags (the coverage detail beside a probe set, the evaluation's error
+shares), which their writers and ``probeplace view`` share. NumPy only, so that the NumPy-only ``export``
+stage reads them with the same tags and checks as the JAX stages.
 
 ProbeSet document::
 
@@ -24,6 +26,9 @@ from ._errors import ProbeplaceError
 PROBE_SET_FORMAT = "probeplace.ProbeSet/1"
 #: Each probe's part in the placement's coverage (``placement.CoverageDetail``), beside its probe set.
 COVERAGE_DETAIL_FORMAT = "probeplace.CoverageDetail/1"
+#: Each probe's share of the evaluation's error (``evaluate._attribute``), in the evaluation's folder.
+PROBE_ERROR_FILE = "probe_error.npz"
+PROBE_ERROR_FORMAT = "probeplace.ProbeError/1"
 #: The baked maps' layout; version 1 stored float32 normal maps (``probes._io`` packs them on load).
 LIGHT_FIELD_FORMAT = "probeplace.LightFieldProbes/2"
 LIGHT_FIELD_FORMAT_V1 = "probeplace.LightFieldProbes/1"

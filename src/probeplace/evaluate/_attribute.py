@@ -26,12 +26,9 @@ from __future__ import annotations
 
 import numpy as np
 
+from .._core._probe_files import PROBE_ERROR_FORMAT
 from ..probes import TraceStatus
 from ._decompose import sample_errors
-
-#: ``probe_error.npz``'s format string.
-PROBE_ERROR_FORMAT = "probeplace.ProbeError/1"
-PROBE_ERROR_FILE = "probe_error.npz"
 
 
 def diffuse_contributions(

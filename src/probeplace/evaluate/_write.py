@@ -16,8 +16,8 @@ import numpy as np
 from PIL import Image
 
 from .._core import write_atomic, write_json_atomic
+from .._core._probe_files import PROBE_ERROR_FILE
 from ..render import save_exr, save_png
-from ._attribute import PROBE_ERROR_FILE
 from ._evaluate import EVAL_COMPONENTS, EVAL_IMAGES, EvalResult
 
 # Per-file allowance for headers, metadata and the file system's block rounding, bytes.

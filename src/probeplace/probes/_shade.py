@@ -312,10 +312,8 @@ def irradiance_weights(
         (ids, weights): (n, k + 1) int32 probe indices (-1: no probe in that slot) and (n, k + 1) float
         weights summing to 1 per point, k the index's candidates per point (8 for a grid).
     """
-    if method not in SHADINGS:
-        raise ConfigError(f"shading method must be one of {SHADINGS}, got {method!r}")
+    visibility = _with_visibility(method)
     index, dt = _prepare(lf, points, index, bounds)
-    visibility = method == "lightfield"
     bias = jnp.asarray(normal_bias * probe_spacing(lf, index) if visibility else 0.0, dt)
     fn = lambda x, n: _weights_chunk(lf, index, x.astype(dt), n.astype(dt), bias, visibility)
     none = (jnp.zeros((0, 1), jnp.int32), jnp.zeros((0, 1), dt))
@@ -335,13 +333,18 @@ def shade_irradiance(
 ) -> Float[Array, "n 3"]:
     """Irradiance by shading method: ``"lightfield"`` (McGuire weights with visibility),
     ``"irradiance"`` (classic probes, no visibility), ``"sh"`` (SH L2)."""
-    if method == "lightfield":
-        return diffuse_irradiance(lf, points, normals, visibility=True, index=index, bounds=bounds, **kw)
-    if method == "irradiance":
-        return diffuse_irradiance(lf, points, normals, visibility=False, index=index, bounds=bounds, **kw)
+    visibility = _with_visibility(method)
     if method == "sh":
         return sh_irradiance(lf, points, normals, index=index, bounds=bounds, **kw)
-    raise ConfigError(f"shading method must be one of {SHADINGS}, got {method!r}")
+    return diffuse_irradiance(lf, points, normals, visibility=visibility, index=index, bounds=bounds, **kw)
+
+
+def _with_visibility(method: str) -> bool:
+    """Whether shading ``method`` weighs probes by visibility (``"lightfield"``: McGuire's Chebyshev
+    test); refuses a method not in :data:`SHADINGS`. One rule for the shading and its weights."""
+    if method not in SHADINGS:
+        raise ConfigError(f"shading method must be one of {SHADINGS}, got {method!r}")
+    return method == "lightfield"
 
 
 __all__ = [

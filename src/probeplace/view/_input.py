@@ -20,8 +20,6 @@ from ..export import ExportError, ExportProbes, read_probes
 
 PROBES_JSON = "probes.json"
 BAKED_NPZ = "probes_baked.npz"
-#: in eval/ (``evaluate.write_evaluation``): each probe's share of the error
-PROBE_ERROR_NPZ = "probe_error.npz"
 CONFIG_YAML = "config.yaml"
 _WHAT = "give a run folder (it holds probes.json) or a probes file (.json, .npz, .glb, .usda, ...)"
 

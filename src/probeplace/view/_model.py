@@ -13,9 +13,9 @@ from pathlib import Path
 
 import numpy as np
 
-from .._core._probe_files import coverage_detail_path
+from .._core._probe_files import PROBE_ERROR_FILE, coverage_detail_path
 from ..export import read_light_field_npz, sh_irradiance, texel_solid_angles
-from ._input import PROBE_ERROR_NPZ, ViewInput
+from ._input import ViewInput
 from ._maps import exposure_white
 
 #: Probe status codes, their legend and colours (saturated cyan / magenta / grey / gold / blue / violet:
@@ -348,9 +348,9 @@ def _error(inp: ViewInput, positions: np.ndarray, baked, diagonal: float) -> tup
     if inp.eval_dir is None:
         where = "a run folder" if inp.run_config is None else "this run's eval/ (eval.enabled was off?)"
         return None, f"not recorded: each probe's share of the error comes with {where}"
-    path = inp.eval_dir / PROBE_ERROR_NPZ
+    path = inp.eval_dir / PROBE_ERROR_FILE
     if not path.is_file():
-        return None, f"not recorded: this run's eval/ has no {PROBE_ERROR_NPZ} (an older version); {RERUN}"
+        return None, f"not recorded: this run's eval/ has no {PROBE_ERROR_FILE} (an older version); {RERUN}"
     z = _npz(path)
     comps = ("diffuse_indirect", "glossy_indirect")
     if z is None or not {"pos_world", *comps} <= set(z):
