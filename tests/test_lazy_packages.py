@@ -51,7 +51,7 @@ def test_every_old_name_still_imports(package):
 
 def test_builtin_scenes_mapping_loads_factories_lazily():
     from probeplace.scene import BUILTIN_SCENES, cornell_box
-    from probeplace.scene._registry import BUILTIN_SCENE_FACTORIES
+    from probeplace.scene.builtin._registry import BUILTIN_SCENE_FACTORIES
 
     assert list(BUILTIN_SCENES) == list(BUILTIN_SCENE_FACTORIES)
     assert BUILTIN_SCENES["cornell_box"] is cornell_box

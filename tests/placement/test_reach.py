@@ -2,7 +2,7 @@
 
 Oracles: a closed-form SDF of a hollow shell (a sealed cavity inside solid walls), with and without a slot
 through one wall, where which points a viewer can get to is known by construction; and the ``rooms``
-scene, whose room D is sealed by construction (``scene._rooms`` docstring).
+scene, whose room D is sealed by construction (``scene.builtin._rooms`` docstring).
 """
 
 from __future__ import annotations
@@ -109,7 +109,7 @@ def test_make_valid_drops_unreachable_probes_and_keeps_the_rest_bit_identical(se
 
 def test_rooms_without_a_view_in_the_sealed_room_get_no_probe_there():
     from probeplace.scene import rooms
-    from probeplace.scene._rooms import ROOMS_DARK_ROOM_BOUNDS
+    from probeplace.scene.builtin._rooms import ROOMS_DARK_ROOM_BOUNDS
 
     scene = rooms()
     lo, hi = (np.asarray(b) for b in ROOMS_DARK_ROOM_BOUNDS)

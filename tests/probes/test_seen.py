@@ -20,7 +20,7 @@ import pytest
 from probeplace.geometry import BruteForceCaster
 from probeplace.probes import BakeConfig, bake_probes, make_tracer, origins_seen
 from probeplace.scene import load_scene
-from probeplace.scene._cornell import _PARTS
+from probeplace.scene.builtin._cornell import _PARTS
 from tests.helpers import grid_probe_set
 
 GEO = 64  # geometry maps' resolution

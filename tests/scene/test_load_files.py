@@ -7,8 +7,8 @@ import trimesh
 from trimesh.ray.ray_pyembree import RayMeshIntersector
 
 from probeplace.scene import cornell_box, load_scene
-from probeplace.scene._obj import ns_to_roughness
-from probeplace.scene._ply import srgb_to_linear
+from probeplace.scene.files._obj import ns_to_roughness
+from probeplace.scene.files._ply import srgb_to_linear
 from tests.helpers import shared_scene_path
 from tests.scene.gltf_util import write_glb
 
@@ -97,7 +97,7 @@ def test_sponza_sun_reaches_ground_floor(sponza):
     assert len(pts) > 1000
     sun = np.asarray(sponza.sun.direction, np.float64)
     lit = ~caster.intersects_any(pts, np.tile(sun, (len(pts), 1)))
-    # measured ≈ 12% of ground-floor points (see scene/_known.py); demand a clear, non-trivial share
+    # measured ≈ 12% of ground-floor points (see scene/config/_known.py); demand a clear, non-trivial share
     assert 0.05 < lit.mean() < 0.5, lit.mean()
 
 

@@ -92,7 +92,7 @@ def test_list_scenes_reports_builtins_and_files(clean_env):
     entries = list_scenes()
     builtin = {e.name: e for e in entries if e.kind == "builtin"}
     assert set(builtin) == set(BUILTIN_SCENES) >= {"cornell_box", "temple", "rooms", "courtyard"}
-    assert builtin["temple"].source == "probeplace.scene._temple"
+    assert builtin["temple"].source == "probeplace.scene.builtin._temple"
     files = {e.name: e for e in entries if e.kind == "file"}
     assert files["extra"].source == str(Path("scenes") / p.name)
 

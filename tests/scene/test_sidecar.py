@@ -16,7 +16,7 @@ from probeplace.scene import (
     sidecar_path,
     sun_direction,
 )
-from probeplace.scene._sky import SUN_ANGULAR_RADIUS
+from probeplace.scene.light._sky import SUN_ANGULAR_RADIUS
 from tests.scene.sidecar_util import LAMP, ROOM_HI, write_room_obj
 
 F32_EPS = float(np.finfo(np.float32).eps)

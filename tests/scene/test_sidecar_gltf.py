@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 
 from probeplace.scene import load_scene, scene_overrides, sidecar_path, sun_direction
-from probeplace.scene._sky import SUN_ANGULAR_RADIUS
+from probeplace.scene.light._sky import SUN_ANGULAR_RADIUS
 from tests.scene.sidecar_util import write_gltf
 
 F32_EPS = float(np.finfo(np.float32).eps)

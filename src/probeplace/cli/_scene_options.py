@@ -1,5 +1,5 @@
 """The scene options every command that loads a scene takes: ``--sun``, ``--sky``, ``--camera``, one-off
-overrides of the scene's sidecar keys (their one-line forms: ``scene._sidecar_cli``)."""
+overrides of the scene's sidecar keys (their one-line forms: ``scene.config._sidecar_cli``)."""
 
 from __future__ import annotations
 

@@ -12,7 +12,7 @@ Search path (first match wins), used for names that are not built-in:
 In each folder a name ``foo`` matches ``foo.glb``, ``foo.gltf``, ``foo.obj``, ``foo.ply`` (in that order).
 
 Every file scene is configured by its sidecar ``foo.probeplace.yaml`` when one lies beside it, under the
-caller's ``overrides`` and over :data:`KNOWN_SCENES` (:mod:`._sidecar`).
+caller's ``overrides`` and over :data:`KNOWN_SCENES` (:mod:`.config._sidecar`).
 """
 
 from __future__ import annotations
@@ -27,21 +27,20 @@ import numpy as np
 
 from .._core import Scene, SceneError
 from ._build import build_scene, make_materials
-from ._gltf import load_gltf
-from ._known import KNOWN_SCENES
-from ._obj import load_obj
-from ._ply import load_ply
 from ._raw import RawScene, ensure_views
-from ._registry import BUILTIN_SCENES
 from ._search import SCENE_EXTENSIONS, SCENE_PATH_ENV, find_scene_file, looks_like_path, scene_search_path
-from ._sidecar import (
+from .builtin import BUILTIN_SCENES
+from .config import (
+    KNOWN_SCENES,
     SceneConfig,
+    apply_scene_config,
+    check_layer,
     merge_scene_configs,
     no_light_hint,
     parse_scene_config,
     read_sidecar,
 )
-from ._sidecar_apply import apply_scene_config, check_layer
+from .files import load_gltf, load_obj, load_ply
 
 log = logging.getLogger(__name__)
 

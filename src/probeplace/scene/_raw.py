@@ -118,7 +118,7 @@ def derived_views(bounds: np.ndarray, fov_y_deg: float = 60.0) -> list[Camera]:
       the box at 25% of the height.
 
     Both positions are strictly inside the bounds; whether they are in free space (not inside a wall)
-    depends on the scene, so scenes we know get explicit views (:mod:`~probeplace.scene._known`).
+    depends on the scene, so scenes we know get explicit views (:mod:`~probeplace.scene.config._known`).
     """
     lo, hi = np.asarray(bounds[0], np.float64), np.asarray(bounds[1], np.float64)
     e = hi - lo

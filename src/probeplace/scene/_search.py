@@ -10,8 +10,8 @@ import os
 from collections.abc import Sequence
 from pathlib import Path
 
-from ._registry import BUILTIN_SCENES, builtin_scene_module
-from ._sidecar import sidecar_path
+from .builtin import BUILTIN_SCENES, builtin_scene_module
+from .config import sidecar_path
 
 #: Environment variable holding extra scene folders (``os.pathsep``-separated).
 SCENE_PATH_ENV = "PROBEPLACE_SCENE_PATH"

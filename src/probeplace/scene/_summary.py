@@ -13,7 +13,7 @@ from typing import Any
 import numpy as np
 
 from .._core import Scene
-from ._sky import sun_from_irradiance
+from .light import sun_from_irradiance
 
 
 def _vec(x) -> list[float]:

@@ -26,10 +26,10 @@ from pathlib import Path
 import numpy as np
 import trimesh
 
-from .._core import Camera, SceneError, Sun
-from ._build import make_camera
-from ._raw import DEFAULT_GREY, PartCollector, RawScene, material_arrays, trimesh_errors
-from ._sky import sun_from_irradiance
+from ..._core import Camera, SceneError, Sun
+from .._build import make_camera
+from .._raw import DEFAULT_GREY, PartCollector, RawScene, material_arrays, trimesh_errors
+from ..light import sun_from_irradiance
 
 log = logging.getLogger(__name__)
 

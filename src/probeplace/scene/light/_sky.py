@@ -11,12 +11,12 @@ from __future__ import annotations
 
 import numpy as np
 
-from .._core import Sun
-from ._build import make_sun
+from ..._core import Sun
+from .._build import make_sun
+from .._primitives import Vec3Like
 from ._daylight import DAYLIGHT_SKY_RADIANCE as DAYLIGHT_SKY_RADIANCE
 from ._daylight import DAYLIGHT_SUN_IRRADIANCE as DAYLIGHT_SUN_IRRADIANCE
 from ._daylight import SUN_ANGULAR_RADIUS as SUN_ANGULAR_RADIUS
-from ._primitives import Vec3Like
 
 
 def sun_from_irradiance(

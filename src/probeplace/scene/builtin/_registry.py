@@ -11,14 +11,14 @@ from collections.abc import Callable, Iterator, Mapping
 from typing import TYPE_CHECKING
 
 if TYPE_CHECKING:
-    from .._core import Scene
+    from ..._core import Scene
 
 #: name -> ``"module:function"`` of its zero-argument factory (the one list of built-in scenes).
 BUILTIN_SCENE_FACTORIES: dict[str, str] = {
-    "cornell_box": "probeplace.scene._cornell:cornell_box",
-    "temple": "probeplace.scene._temple:temple",
-    "rooms": "probeplace.scene._rooms:rooms",
-    "courtyard": "probeplace.scene._courtyard:courtyard",
+    "cornell_box": "probeplace.scene.builtin._cornell:cornell_box",
+    "temple": "probeplace.scene.builtin._temple:temple",
+    "rooms": "probeplace.scene.builtin._rooms:rooms",
+    "courtyard": "probeplace.scene.builtin._courtyard:courtyard",
 }
 
 

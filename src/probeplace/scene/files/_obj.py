@@ -26,8 +26,8 @@ from pathlib import Path
 import numpy as np
 import trimesh
 
-from .._core import SceneError
-from ._raw import DEFAULT_GREY, PartCollector, RawScene, material_arrays, trimesh_errors
+from ..._core import SceneError
+from .._raw import DEFAULT_GREY, PartCollector, RawScene, material_arrays, trimesh_errors
 
 log = logging.getLogger(__name__)
 

@@ -13,10 +13,10 @@ from __future__ import annotations
 
 import numpy as np
 
-from .._core import Scene
-from ._build import make_camera, materials_from_table
-from ._primitives import MeshAssembler, box, cylinder, place, rotation_y
-from ._sky import DAYLIGHT_SKY_RADIANCE, sun_direction, sun_from_irradiance
+from ..._core import Scene
+from .._build import make_camera, materials_from_table
+from .._primitives import MeshAssembler, box, cylinder, place, rotation_y
+from ..light import DAYLIGHT_SKY_RADIANCE, sun_direction, sun_from_irradiance
 
 _HALF = 20.0  # the square spans [-20, 20] in x and z
 _WALL_T = 0.4

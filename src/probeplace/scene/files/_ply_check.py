@@ -14,7 +14,7 @@ from pathlib import Path
 
 import numpy as np
 
-from .._core import SceneError
+from ..._core import SceneError
 
 #: Bytes per value of each PLY scalar type (both spellings).
 _SIZES = {"char": 1, "uchar": 1, "short": 2, "ushort": 2, "int": 4, "uint": 4, "float": 4, "double": 8,

@@ -14,8 +14,8 @@ from pathlib import Path
 import numpy as np
 import trimesh
 
+from .._raw import DEFAULT_GREY, PartCollector, RawScene, trimesh_errors
 from ._ply_check import check_ply
-from ._raw import DEFAULT_GREY, PartCollector, RawScene, trimesh_errors
 
 
 def srgb_to_linear(c: np.ndarray) -> np.ndarray:

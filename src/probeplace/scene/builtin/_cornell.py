@@ -11,8 +11,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from .._core import Scene
-from ._build import build_scene, make_camera, materials_from_table
+from ..._core import Scene
+from .._build import build_scene, make_camera, materials_from_table
 
 # name -> list of quads (4 corners each, mm)
 _PARTS: dict[str, list[list[tuple[float, float, float]]]] = {

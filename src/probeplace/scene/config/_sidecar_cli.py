@@ -16,7 +16,7 @@ from __future__ import annotations
 from collections.abc import Sequence
 from typing import Any
 
-from .._core import ConfigError
+from ..._core import ConfigError
 from ._config_values import show
 from ._sidecar import _CAMERA, _SUN, NO_SUN, parse_camera_spec, parse_sky_value, parse_sun_spec
 

@@ -22,9 +22,9 @@ so no ray can slip through a seam between two boxes into D.
 
 from __future__ import annotations
 
-from .._core import Scene
-from ._build import make_camera, materials_from_table
-from ._primitives import BOX_FACE_TRIS, MeshAssembler, box
+from ..._core import Scene
+from .._build import make_camera, materials_from_table
+from .._primitives import BOX_FACE_TRIS, MeshAssembler, box
 
 #: Interior (thin) wall thickness in metres.
 ROOMS_WALL_THICKNESS = 0.05

@@ -1,5 +1,5 @@
-"""Apply a :class:`~probeplace.scene._sidecar.SceneConfig` to a built Scene: materials, emitters, sun, sky,
-cameras, then units and the up axis (docs/scenes.md, "Sidecar config").
+"""Apply a :class:`~probeplace.scene.config._sidecar.SceneConfig` to a built Scene: materials, emitters,
+sun, sky, cameras, then units and the up axis (docs/scenes.md, "Sidecar config").
 
 Works on a built :class:`~probeplace._core.Scene`, so the same code serves scene files and built-in
 scenes; the config's points and vectors are in the file frame, so the up-axis turn comes last and carries
@@ -15,12 +15,12 @@ import equinox as eqx
 import jax.numpy as jnp
 import numpy as np
 
-from .._core import Camera, ConfigError, Scene, Sun
-from ._build import make_camera, make_materials, make_sun
-from ._raw import DEFAULT_GREY
+from ..._core import Camera, ConfigError, Scene, Sun
+from .._build import make_camera, make_materials, make_sun
+from .._raw import DEFAULT_GREY
+from .._transform import transform_scene
+from ..light import DAYLIGHT_SUN_IRRADIANCE, sun_direction, sun_from_irradiance
 from ._sidecar import NO_SUN, CameraSpec, SceneConfig, SunSpec, check_up
-from ._sky import DAYLIGHT_SUN_IRRADIANCE, sun_direction, sun_from_irradiance
-from ._transform import transform_scene
 
 #: File frame → scene frame (+Y up). Z-up: (x, y, z) ↦ (x, z, −y), a proper rotation (−90° about X),
 #: the one Blender's glTF exporter uses, so +X stays +X and the file's +Z becomes +Y.
@@ -161,7 +161,7 @@ def apply_scene_config(scene: Scene, cfg: SceneConfig) -> Scene:
 
     Args:
         scene: a built scene, in its file's frame and units.
-        cfg: the merged config (:func:`~probeplace.scene._sidecar.merge_scene_configs`).
+        cfg: the merged config (:func:`~probeplace.scene.config._sidecar.merge_scene_configs`).
 
     Returns:
         The configured scene, +Y up; host-side (call outside jit).

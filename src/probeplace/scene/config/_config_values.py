@@ -11,7 +11,7 @@ import math
 from collections.abc import Mapping
 from typing import Any
 
-from .._core import ConfigError
+from ..._core import ConfigError
 
 
 def show(value: Any, limit: int = 60) -> str:

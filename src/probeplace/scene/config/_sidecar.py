@@ -26,9 +26,9 @@ from collections.abc import Mapping
 from pathlib import Path
 from typing import Any
 
-from .._core import ConfigError
+from ..._core import ConfigError
+from ..light import DAYLIGHT_SKY_RADIANCE, SUN_ANGULAR_RADIUS
 from . import _config_values as cv
-from ._daylight import DAYLIGHT_SKY_RADIANCE, SUN_ANGULAR_RADIUS
 
 #: Suffix that replaces a scene file's extension to name its sidecar: room.glb -> room.probeplace.yaml.
 SIDECAR_SUFFIX = ".probeplace.yaml"

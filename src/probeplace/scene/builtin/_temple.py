@@ -11,10 +11,10 @@ Layout (hall interior): x ∈ [−10, 10], z ∈ [−7, 5.5], floor y = 1, roof 
 
 from __future__ import annotations
 
-from .._core import Scene
-from ._build import make_camera, materials_from_table
-from ._primitives import MeshAssembler, box, cylinder
-from ._sky import DAYLIGHT_SKY_RADIANCE, sun_direction, sun_from_irradiance
+from ..._core import Scene
+from .._build import make_camera, materials_from_table
+from .._primitives import MeshAssembler, box, cylinder
+from ..light import DAYLIGHT_SKY_RADIANCE, sun_direction, sun_from_irradiance
 
 _FLOOR_Y = 1.0
 _ROOF_Y = 7.0
