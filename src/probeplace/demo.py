@@ -133,14 +133,20 @@ def _stage_reference(scene: Scene, cfg: dict, out: Path) -> dict:
 
 def _stage_place(scene: Scene, cfg: dict, out: Path) -> tuple[dict, object]:
     """Automatic placement (fewest probes reaching full coverage), saved as a ProbeSet file + top view."""
-    from ._core import save_probe_set
-    from .placement import place, save_top_view
+    from .pipeline import write_placement
+    from .placement import place
 
     placed = place(scene, method=cfg["method"], budget="auto", seed=cfg["seed"])
     probes, meta = placed.probes, placed.metadata
-    save_probe_set(out / "probes.json", probes, units_m=scene.unit_m, metadata=meta)
     pos = np.asarray(probes.pos_world)[np.asarray(probes.active)]
-    save_top_view(scene, pos, out / "probes_top_view.png", title=f"{scene.name}: {len(pos)} probes (auto)")
+    write_placement(  # probes.json, its coverage detail and the top view
+        scene,
+        placed,
+        out / "probes.json",
+        png=out / "probes_top_view.png",
+        title=f"{scene.name}: {len(pos)} probes (auto)",
+        metadata=meta,
+    )
     summary = {k: meta[k] for k in ("coverage", "n_probes", "timings") if k in meta}
     summary["n_active"] = len(pos)
     return summary, probes
@@ -148,24 +154,27 @@ def _stage_place(scene: Scene, cfg: dict, out: Path) -> tuple[dict, object]:
 
 def _stage_bake(scene: Scene, probes, cfg: dict, out: Path) -> dict:
     """Bake the placed probes with the reference path tracer; npz, contact sheet and a glTF export."""
-    from .export import export_probes, read_probes
-    from .geometry import make_caster
-    from .probes import BakeConfig, bake_probes, path_traced_radiance, save_contact_sheet, save_probes
+    from .pipeline import bake, export_baked
+    from .probes import DEFAULT_EVAL_MAX_DEPTH, BakeConfig, save_contact_sheet, save_probes
+    from .render import default_caster
 
-    caster = make_caster(scene, use="render")
+    caster = default_caster(scene)
     t0 = time.perf_counter()
-    lf = bake_probes(
+    lf = bake(
         scene,
         probes,
-        caster=caster,
-        radiance_fn=path_traced_radiance(scene, spp=cfg["spp"], caster=caster),
-        key=jax.random.key(cfg["seed"]),
         config=BakeConfig(radiance_res=cfg["radiance_res"], probes_per_batch=2),
-    )
+        spp=cfg["spp"],
+        eval_max_depth=DEFAULT_EVAL_MAX_DEPTH,
+        backend="jax",
+        caster=caster,
+        key=jax.random.key(cfg["seed"]),
+        pad=False,
+    ).probes
     seconds = time.perf_counter() - t0
     save_probes(out / "probes_baked.npz", lf)
     save_contact_sheet(lf, out / "probes_contact_sheet.png")
-    gltf = export_probes(read_probes(out / "probes_baked.npz"), "gltf", out / "probes.gltf")
+    gltf = export_baked(out / "probes_baked.npz", ["gltf"], out)
     return {
         "radiance_res": lf.radiance_res,
         "probes": int(lf.pos_world.shape[0]),

@@ -7,9 +7,22 @@ from pathlib import Path
 
 import probeplace
 
-# Lowest first. ``export`` sits beside the pipeline: it reads probe files and may import ``_core`` only.
-ORDER = ("_core", "scene", "geometry", "render", "placement", "probes", "evaluate", "experiment", "view")
+# Lowest first. ``pipeline`` holds the stages' shared steps, which the runner and the CLI call. ``export``
+# sits beside the stages: it reads probe files and may import ``_core`` only.
+ORDER = (
+    "_core",
+    "scene",
+    "geometry",
+    "render",
+    "placement",
+    "probes",
+    "evaluate",
+    "pipeline",
+    "experiment",
+    "view",
+)
 ALLOWED = {stage: set(ORDER[:i]) for i, stage in enumerate(ORDER)}
+ALLOWED["pipeline"] |= {"export"}
 ALLOWED["experiment"] |= {"export"}
 ALLOWED["view"] |= {"export"}
 ALLOWED["export"] = {"_core"}

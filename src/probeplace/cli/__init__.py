@@ -175,11 +175,10 @@ def _cmd_place(args: argparse.Namespace) -> int:
     """Place probes (``placement.place``), write the top view, each probe's part in the coverage
     (``<out stem>.coverage.npz``, for ``probeplace view``) and then the probe set (last: a probe set on
     disk means the command finished)."""
-    from .._core import save_probe_set
     from .._core._checks import check_writable_file
     from .._core._io import naming_the_file
-    from .._core._probe_files import coverage_detail_path
-    from ..placement import FitnessConfig, place, result_coverage_detail, save_top_view
+    from ..pipeline import write_placement
+    from ..placement import FitnessConfig, place
     from ..scene import load_scene
     from ._scene_options import scene_overrides_from_args
 
@@ -204,18 +203,15 @@ def _cmd_place(args: argparse.Namespace) -> int:
         config=FitnessConfig(coverage=args.coverage),
     )
     summary = f"{res.n_probes} probes, coverage {res.coverage:.4f}"
-    detail, detail_path = result_coverage_detail(res), coverage_detail_path(out)
-    try:
-        with naming_the_file(png):  # a full disk fails savefig's write() naming no file
-            save_top_view(scene, res.probes.pos_world, png, title=f"{args.scene}: {summary}")
-        if detail is not None:
-            with naming_the_file(detail_path):
-                detail.save(detail_path)
-        save_probe_set(out, res.probes, units_m=scene.unit_m, metadata={**res.metadata, "scene": args.scene})
-    except BaseException:  # interrupted or failed: leave no top view or detail without its probe set
-        png.unlink(missing_ok=True)
-        detail_path.unlink(missing_ok=True)
-        raise
+    write_placement(  # the probe set last; interrupted or failed: no top view or detail without it
+        scene,
+        res,
+        out,
+        png=png,
+        title=f"{args.scene}: {summary}",
+        metadata={**res.metadata, "scene": args.scene},
+        on_error=naming_the_file,
+    )
     print(f"{summary}, {res.timings['total_s']:.1f} s -> {out}, {png}")
     return 0
 
@@ -226,13 +222,14 @@ def _budget_that_fits(args: argparse.Namespace, scene, budget):
     and ``--geometry-res`` (else the scene's default); ``auto`` unchanged. Before any placement."""
     if budget == "auto" and args.memory_budget is None:
         return budget
-    from ..placement import check_probe_count, count_for_memory
+    from ..pipeline import probe_budget
+    from ..placement import check_probe_count
     from ..probes import BakeConfig, default_radiance_res, probe_bytes
 
     res = args.radiance_res or default_radiance_res(scene)
     bake = BakeConfig(radiance_res=res, geometry_res=args.geometry_res or res)
     if args.memory_budget is not None:
-        return count_for_memory(args.memory_budget, probe_bytes(scene, bake))
+        return probe_budget(scene, budget, args.memory_budget, bake)
     settings = f"radiance_res={bake.radiance_res}, geometry_res={bake.geometry_res}"
     fix = "lower --budget, or give --memory-budget SIZE for the most probes that fit"
     check_probe_count(budget, probe_bytes(scene, bake), f"--budget {budget}", settings, fix)

@@ -317,13 +317,9 @@ def _checked_inputs(args: argparse.Namespace):
         )
     config = eval_config(args)  # first: the output's size bound needs a sensible image size
     _checked_outputs(args, path, config)
-    if config.backend == "mitsuba":  # refuse before loading anything if its LLVM variant cannot load
-        from ..render import load_mitsuba
+    from ..pipeline import check_backend
 
-        try:
-            load_mitsuba()
-        except ImportError as e:
-            raise ConfigError(f"--backend mitsuba: {e}") from None
+    check_backend(config.backend, "--backend mitsuba")  # before loading anything
     if path.suffix == ".npz":
         probes = load_probes(check_npz_archive(path, "--probes"))
         bake_cfg = None
@@ -450,14 +446,8 @@ def run(args: argparse.Namespace) -> int:
 
     from ..evaluate import evaluate, write_evaluation
     from ..geometry import make_caster
-    from ..probes import (
-        bake_depth_for,
-        bake_probes,
-        choose_bake_spp,
-        pad_probes,
-        path_traced_radiance,
-        save_probes,
-    )
+    from ..pipeline import bake, check_view
+    from ..probes import save_probes
     from ..scene import load_scene
     from ._scene_options import scene_overrides_from_args
 
@@ -465,12 +455,7 @@ def run(args: argparse.Namespace) -> int:
     path, config, bake_cfg, probes = _checked_inputs(args)
     say = _Stages(config)  # its first line after the last refusal: a refusal stays one line
     scene = load_scene(args.scene, overrides=overrides, require_light=True)
-    views = [c.name for c in scene.views]
-    if not views:
-        raise ConfigError(f"scene {scene.name!r} has no view to evaluate (add one in its sidecar config)")
-    view = args.view or views[0]
-    if view not in views:
-        raise ConfigError(f"--view: scene {scene.name!r} has no view {view!r}; views: {views}")
+    view = check_view(scene, args.view, "--view")
     _check_probes_fit(probes, path, scene, args, config, overrides, view)
     say(f"scene {scene.name} loaded and checked; building the ray caster")
     caster = make_caster(scene, use="render")
@@ -485,21 +470,18 @@ def run(args: argparse.Namespace) -> int:
         n = int(np.asarray(probes.active).sum())
         res, spp = bake_cfg.radiance_res, opt["bake_spp"]
         say(f"bake: {n} probes, {res}² radiance maps, {spp} paths per texel ray ({backend})")
-        probes = pad_probes(probes)  # as the runner (bake.pad_pow2): a few probe counts, compiled once each
-        radiance_fn = path_traced_radiance(
+        baked = bake(  # padded as the runner's (bake.pad_pow2): a few probe counts, compiled once each
             scene,
-            spp=bake_cfg.pilot_spp if is_auto(spp) else spp,
-            max_depth=bake_depth_for(config.max_depth),
-            caster=caster if backend == "jax" else None,
+            probes,
+            config=bake_cfg,
+            spp=spp,
+            eval_max_depth=config.max_depth,
             backend=backend,
+            caster=caster,
+            key=k_bake,
+            say=say,
         )
-        samples = choose_bake_spp(
-            scene, probes, radiance_fn=radiance_fn, key=k_bake, config=bake_cfg, spp=spp
-        )
-        if samples.chosen_by == "target":
-            say(f"bake: {samples.spp} paths per texel ray chosen (bake_samples in metrics.json)")
-        radiance_fn = samples.radiance_fn(radiance_fn)
-        lf = bake_probes(scene, probes, caster=caster, radiance_fn=radiance_fn, key=k_bake, config=bake_cfg)
+        lf, samples = baked.probes, baked.samples
         if args.save_baked:
             say(f"writing {args.save_baked}")
             save_probes(args.save_baked, lf)

@@ -227,18 +227,15 @@ def _timed(timings: dict, stage: str, *, drjit: bool = False) -> Iterator[None]:
 
 def _check_backends(cfg: ExperimentConfig) -> None:
     """Refuse ``mitsuba`` backends whose Mitsuba module or LLVM variant cannot load, before any work
-    (``probeplace evaluate --backend mitsuba`` checks the same way)."""
+    (``pipeline.check_backend``, as ``probeplace evaluate --backend mitsuba``)."""
+    from ..pipeline import check_backend
+
     for key, used, backend in (
         ("bake.backend", cfg.bake.enabled, cfg.bake.backend),
         ("eval.backend", cfg.eval.enabled, cfg.eval.backend),
     ):
-        if used and backend == "mitsuba":
-            from ..render import load_mitsuba
-
-            try:
-                load_mitsuba()
-            except ImportError as e:
-                raise ConfigError(f"{key}: {e}") from None
+        if used:
+            check_backend(backend, key)
 
 
 def _tree_nbytes(tree) -> int:
@@ -390,12 +387,11 @@ def _run_record(cfg: ExperimentConfig, final: Path, timings: dict) -> dict:
 
 
 def _check_view(cfg: ExperimentConfig, scene) -> None:
-    """Refuse an evaluation view the scene lacks before placing and baking."""
-    views = [c.name for c in scene.views]
-    if cfg.eval.enabled and cfg.eval.view not in views:
-        raise ConfigError(
-            f"eval.view: scene {cfg.scene.name!r} has no view {cfg.eval.view!r}; views: {views}"
-        )
+    """Refuse an evaluation view the scene lacks before placing and baking (``pipeline.check_view``)."""
+    from ..pipeline import check_view
+
+    if cfg.eval.enabled:
+        check_view(scene, cfg.eval.view, "eval.view", label=cfg.scene.name)
 
 
 def _needs_light(cfg: ExperimentConfig) -> bool:
@@ -437,21 +433,19 @@ def check_scenes(cfgs: Iterable[ExperimentConfig]) -> None:
 
 def _placer_budget(cfg: ExperimentConfig, scene) -> int | str:
     """``placer.budget``, or the count ``placer.memory_budget`` buys at this run's bake settings."""
-    if cfg.placer.memory_budget is None:
-        return cfg.placer.budget
-    from ..placement import count_for_memory
-    from ..probes import probe_bytes
+    from ..pipeline import probe_budget
 
-    return count_for_memory(cfg.placer.memory_budget, probe_bytes(scene, bake_config(cfg)))
+    if cfg.placer.memory_budget is None:  # no bake settings needed
+        return cfg.placer.budget
+    return probe_budget(scene, cfg.placer.budget, cfg.placer.memory_budget, bake_config(cfg))
 
 
 def _place_stage(cfg: ExperimentConfig, scene, translation, partial: Path, final: Path, timings, metrics):
     """Place (timed), record the placement's figures, write ``probes.json`` and the top view."""
     import jax
 
-    from .._core import save_probe_set
-    from .._core._probe_files import coverage_detail_path
-    from ..placement import FitnessConfig, place, result_coverage_detail, save_top_view
+    from ..pipeline import write_placement
+    from ..placement import FitnessConfig, place
 
     with _timed(timings, "place"):
         placed = place(
@@ -481,13 +475,16 @@ def _place_stage(cfg: ExperimentConfig, scene, translation, partial: Path, final
         placement_timings=placed.timings,
     )
     metrics["inside_geometry"] = _inside_sdf(scene, pos)
-    save_probe_set(partial / "probes.json", probes, units_m=scene.unit_m, metadata=_jsonable(placed.metadata))
-    t0 = time.perf_counter()
-    detail = result_coverage_detail(placed)  # its own visibility pass, else one more (not place_s)
-    if detail is not None:
-        detail.save(coverage_detail_path(partial / "probes.json"))
-    timings["coverage_detail_s"] = time.perf_counter() - t0
-    save_top_view(scene, pos, partial / "top_view.png", title=f"{final.name}: {len(pos)} probes")
+    t0 = time.perf_counter()  # the coverage detail (its own visibility pass, else one more), top view, files
+    write_placement(
+        scene,
+        placed,
+        partial / "probes.json",
+        png=partial / "top_view.png",
+        title=f"{final.name}: {len(pos)} probes",
+        metadata=_jsonable(placed.metadata),
+    )
+    timings["write_placement_s"] = time.perf_counter() - t0
     return probes
 
 
@@ -513,44 +510,26 @@ def _bake_stage(cfg: ExperimentConfig, scene, probes, key, partial: Path, timing
     """
     import jax
 
-    from .._core import is_auto
-    from ..probes import (
-        bake_depth_for,
-        bake_probes,
-        choose_bake_spp,
-        pad_probes,
-        path_traced_radiance,
-        save_probes,
-    )
+    from ..pipeline import bake
+    from ..probes import save_probes
     from ..render import default_caster, resolve_backend
 
     caster = default_caster(scene)
     backend = resolve_backend(cfg.bake.backend)
-    mitsuba = backend == "mitsuba"
-    config = bake_config(cfg)
-    radiance_fn = path_traced_radiance(
-        scene,
-        spp=config.pilot_spp if is_auto(cfg.bake.spp) else cfg.bake.spp,
-        # one depth rule for bake, reference and evaluation: a texel replaces the rest of a camera path
-        max_depth=bake_depth_for(cfg.tracer.max_depth),
-        caster=None if mitsuba else caster,  # Mitsuba casts its own rays (Embree)
-        backend=backend,
-    )
-    with _timed(timings, "bake", drjit=mitsuba):
-        probes = pad_probes(probes) if cfg.bake.pad_pow2 else probes
-        samples = choose_bake_spp(
-            scene, probes, radiance_fn=radiance_fn, key=key, config=config, spp=cfg.bake.spp
-        )
-        lf = bake_probes(
+    with _timed(timings, "bake", drjit=backend == "mitsuba"):
+        baked = bake(
             scene,
             probes,
-            caster=caster,  # texel-centre geometry rays and the inside test, whatever the backend
-            radiance_fn=samples.radiance_fn(radiance_fn),
+            config=bake_config(cfg),
+            spp=cfg.bake.spp,
+            eval_max_depth=cfg.tracer.max_depth,
+            backend=backend,
+            caster=caster,
             key=key,
-            config=config,
+            pad=cfg.bake.pad_pow2,
         )
-        jax.block_until_ready(lf)
-    metrics["bake_samples"] = samples.to_dict()
+        lf = jax.block_until_ready(baked.probes)
+    metrics["bake_samples"] = baked.samples.to_dict()
     save_probes(partial / "probes_baked.npz", lf)
     metrics["inside_bake"] = int((np.asarray(lf.inside) & np.asarray(lf.active)).sum())
     # the settings stored with the probes (backend included), plus the geometry maps' resolution
@@ -564,17 +543,10 @@ def _bake_stage(cfg: ExperimentConfig, scene, probes, key, partial: Path, timing
 
 def _export_stage(cfg: ExperimentConfig, partial: Path) -> list[str]:
     """Engine exports of the baked probes under ``export/``; their paths relative to the run folder."""
-    from ..export import export_probes, read_probes
+    from ..pipeline import export_baked
 
-    data = read_probes(partial / "probes_baked.npz")
-    (partial / "export").mkdir()
-    files = []
-    for fmt in cfg.export.formats:
-        files += [
-            str(p.relative_to(partial))
-            for p in export_probes(data, fmt, partial / "export" / f"probes.{fmt}")
-        ]
-    return files
+    files = export_baked(partial / "probes_baked.npz", cfg.export.formats, partial / "export")
+    return [str(p.relative_to(partial)) for p in files]
 
 
 # Keys that do not change a run's results: a finished run with other values here is still the same run.
