@@ -7,7 +7,8 @@ import logging
 import os
 import sys
 
-from .._core import ProbeplaceError
+from .._core import ConfigError, ProbeplaceError
+from . import _options
 
 
 def _cmd_scenes(args: argparse.Namespace) -> int:
@@ -182,25 +183,19 @@ def _cmd_place(args: argparse.Namespace) -> int:
     from ..scene import load_scene
     from ._scene_options import scene_overrides_from_args
 
-    out, png, budget, region = _checked_place_args(args)
+    out, png, settings = _checked_place_args(args)
     # vardis path-traces its dense probes: a scene without light is refused by the load, naming the method
     needs_light = "--method vardis" if args.method == "vardis" else False
     scene = load_scene(args.scene, overrides=scene_overrides_from_args(args), require_light=needs_light)
-    budget = _budget_that_fits(args, scene, budget)
+    budget = _budget_that_fits(args, scene, settings["budget"])
     if budget != "auto":  # room for the probe set: ≥ ~32 bytes a probe (3 numbers, a flag, a line each)
         check_writable_file(out, "--out", size=32 * budget)
     res = place(
         scene,
         method=args.method,
-        budget=budget,
-        refiner=None if args.refiner == "none" else args.refiner,
-        objective=args.objective,
-        seed=args.seed,
-        target=args.target,
         options=_place_options(args.option),
-        clearance=args.clearance,
-        region=region,
         config=FitnessConfig(coverage=args.coverage),
+        **(settings | {"budget": budget}),
     )
     summary = f"{res.n_probes} probes, coverage {res.coverage:.4f}"
     write_placement(  # the probe set last; interrupted or failed: no top view or detail without it
@@ -237,15 +232,26 @@ def _budget_that_fits(args: argparse.Namespace, scene, budget):
 
 
 def _checked_place_args(args: argparse.Namespace):
-    """Every ``place`` option checked before the scene is loaded: (out, png, budget, region)."""
+    """Every ``place`` option checked before the scene is loaded: (out, png, settings), the settings the
+    ``placement.PlaceRequest`` fields of the flags and ``--height-band``'s region, checked by it."""
     from pathlib import Path
 
     from .._core._checks import check_writable_file
     from ..placement import PlaceRequest, get_method, parse_bytes
 
-    budget = "auto" if args.budget == "auto" else _positive_int(args.budget)
+    region = (
+        None if args.height_band is None else {"height": _number_list(args.height_band, 2, "--height-band")}
+    )
+    settings = {name: getattr(args, name) for name in PlaceRequest.settings(scalar=True)} | {"region": region}
+    try:
+        PlaceRequest(**settings)
+    except ConfigError as e:  # "budget must be ..." → "--budget: must be ..."
+        name = str(e).split(" ", 1)[0]
+        if name not in settings:
+            raise
+        raise ConfigError(f"{_options.flag(name)}: {str(e).removeprefix(name).lstrip(': ')}") from None
     if args.memory_budget is not None:
-        if budget != "auto":
+        if settings["budget"] != "auto":
             raise ProbeplaceError("give --budget or --memory-budget, not both")
         from .._core import check_memory
 
@@ -258,23 +264,10 @@ def _checked_place_args(args: argparse.Namespace):
         from ..probes import BakeConfig
 
         BakeConfig(radiance_res=args.radiance_res, geometry_res=args.geometry_res)
-    region = (
-        None if args.height_band is None else {"height": _number_list(args.height_band, 2, "--height-band")}
-    )
-    refiner = None if args.refiner == "none" else args.refiner
-    PlaceRequest(
-        budget=budget,
-        refiner=refiner,
-        objective=args.objective,
-        seed=args.seed,
-        target=args.target,
-        clearance=args.clearance,
-        region=region,
-    )
     get_method(args.method).parse_options(_place_options(args.option))  # unknown or bad options
     out = check_writable_file(args.out, "--out")
     png = check_writable_file(args.png or out.with_suffix(".png"), "--png")
-    return Path(out), Path(png), budget, region
+    return Path(out), Path(png), settings
 
 
 def _place_options(items: list[str]) -> dict:
@@ -302,16 +295,6 @@ def _number_list(text: str, n: int, flag: str) -> list[float]:
     if len(values) != n:
         raise ProbeplaceError(f"{flag} must be {n} comma-separated numbers, got {text!r}")
     return values
-
-
-def _positive_int(text: str) -> int:
-    try:
-        n = int(text)
-    except ValueError:
-        n = 0
-    if n < 1:
-        raise ProbeplaceError(f"--budget must be 'auto' or a positive integer, got {text!r}")
-    return n
 
 
 class _HelpFormatter(argparse.ArgumentDefaultsHelpFormatter):
@@ -383,7 +366,8 @@ class _Into:
 
 class _Main(argparse.ArgumentParser):
     """The top-level parser: its help first fills the subcommands whose line it cannot know without
-    loading them (``evaluate``: the line is the stage's own)."""
+    loading them (none today: each line is given to ``_lazy``, so ``probeplace --help`` imports no stage;
+    filling ``evaluate`` imports ``probes`` for its tracer options)."""
 
     def format_help(self) -> str:
         for parser in self._subparsers._group_actions[0].choices.values():
@@ -425,7 +409,7 @@ def build_parser(lazy: bool = True) -> argparse.ArgumentParser:
     )
     _lazy(sub, "place", _PLACE_HELP, _fill_place_parser)
     _lazy(sub, "export", _EXPORT_HELP, _fill_export_parser)
-    _lazy(sub, "evaluate", None, _fill_evaluate_parser)  # --- evaluate (issue 4) ---
+    _lazy(sub, "evaluate", _EVALUATE_HELP, _fill_evaluate_parser)  # --- evaluate (issue 4) ---
     _lazy(sub, "view", _VIEW_HELP, _fill_view_parser)  # --- view (issue 36) ---
     from ._cache import add_parser as _add_cache  # --- cache (issue 32); imports no JAX ---
 
@@ -466,6 +450,9 @@ def _fill_evaluate_parser(e: _Subcommand) -> None:
 
 
 _PLACE_HELP = "place probes in a scene and write a ProbeSet JSON file + top view"
+_EVALUATE_HELP = (
+    "evaluate a probe set on a scene view: MSE per component vs the path tracer (docs/evaluate.md)"
+)
 _VIEW_HELP = (
     "a web viewer of a run folder or a probes file: scene, probes, cameras, error image, a probe's maps "
     "(docs/view.md)"
@@ -483,7 +470,7 @@ _EXPORT_HELP = "write a probe set to an engine format (docs/export.md)"
 
 def _fill_place_parser(pl: argparse.ArgumentParser) -> None:
     """``probeplace place``: methods and refiners from their registries (imports the placement stage)."""
-    from ..placement import COVERAGE_RULES, OBJECTIVES, REFINERS, get_method, method_names
+    from ..placement import COVERAGE_RULES, PlaceRequest, get_method, method_names
     from ._scene_options import add_scene_options
 
     pl.add_argument("scene", help="scene name or file (see `probeplace scenes`)")
@@ -503,9 +490,14 @@ def _fill_place_parser(pl: argparse.ArgumentParser) -> None:
         help="baseline option, repeatable (e.g. -o dims=8,8,8 -o inside=relocate; -o levels=2; "
         "-o dense_probes=512 -o tolerance=0.05); see docs/baselines.md",
     )
-    pl.add_argument(
-        "--budget", default="auto", help="'auto' (fewest probes to the target) or the exact probe count"
-    )
+    for name, (tp, default, text) in PlaceRequest.settings(scalar=True).items():  # the stage's schema
+        pl.add_argument(
+            _options.flag(name),
+            type=_options.value_parser(tp),
+            default=default,
+            metavar=name.upper(),
+            help=text,
+        )
     pl.add_argument(
         "--memory-budget",
         default=None,
@@ -526,23 +518,11 @@ def _fill_place_parser(pl: argparse.ArgumentParser) -> None:
         help="bake geometry resolution of --memory-budget (default: --radiance-res)",
     )
     pl.add_argument(
-        "--clearance",
-        type=float,
-        default=None,
-        help="smallest probe-to-geometry distance, scene units (default: from the scene's size); nearer "
-        "probes are relocated",
-    )
-    pl.add_argument(
         "--height-band",
         default=None,
         metavar="MIN,MAX",
         help="keep probes this high above the floor, scene units (default: anywhere)",
     )
-    pl.add_argument(
-        "--refiner", default="none", help="refine the placement: " + ", ".join(("none", *REFINERS))
-    )
-    pl.add_argument("--objective", default="coverage", choices=OBJECTIVES, help="the refiner's objective")
-    pl.add_argument("--target", type=float, default=1.0, help="coverage target of --budget auto, in (0, 1]")
     pl.add_argument(
         "--coverage",
         default="reachable",
@@ -551,7 +531,6 @@ def _fill_place_parser(pl: argparse.ArgumentParser) -> None:
         "sees head-on (reachable), or only what the view cameras' positions see (views: Wang 2019's "
         "playable space)",
     )
-    pl.add_argument("--seed", type=int, default=0, help="random seed")
     pl.add_argument("--out", default="probes.json", help="ProbeSet JSON file to write")
     pl.add_argument("--png", default=None, help="top view PNG (default: --out with .png)")
     pl.set_defaults(func=_cmd_place)

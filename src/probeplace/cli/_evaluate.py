@@ -41,8 +41,7 @@ def add_parser(sub) -> None:
     from ._scene_options import add_scene_options
 
     e = sub.add_parser(
-        "evaluate",
-        help="evaluate a probe set on a scene view: MSE per component vs the path tracer (docs/evaluate.md)",
+        "evaluate",  # its one-line help: cli._EVALUATE_HELP (the top-level help reads it unfilled)
         description="Every default is the experiment runner's (experiments/run.py, configs/): the same "
         "bake and evaluation as a run of it.",
     )
@@ -85,12 +84,7 @@ def add_parser(sub) -> None:
         help="shading runs timed (median) after the compile run {runner}",
         action=_RunnerDefault,
     )
-    e.add_argument(
-        "--hierarchy",
-        choices=["hiz", "two_level", "flat"],
-        help="light-field tracer's distance hierarchy {runner}",
-        action=_RunnerDefault,
-    )
+    _add_trace_options(e)
     e.add_argument(
         "--seed", type=int, help="random seed of the bake and the renders {runner}", action=_RunnerDefault
     )
@@ -103,6 +97,36 @@ def add_parser(sub) -> None:
         action=_RunnerDefault,
     )
     e.set_defaults(func=run)
+
+
+def _add_trace_options(e) -> None:
+    """Every setting of the light-field tracer (``probes.TraceConfig`` but ``engine``, the runner's
+    ``lightfield`` group): ``--trace-<name>``, its type and default the field's (``--hierarchy`` is also
+    ``--trace-hierarchy``'s older name)."""
+    import dataclasses
+    import typing
+
+    from ..probes import TraceConfig
+    from ._options import flag, value_parser
+
+    hints = typing.get_type_hints(TraceConfig)
+    for f in dataclasses.fields(TraceConfig):
+        if f.name in TRACE_SET_ELSEWHERE:
+            continue
+        names = [flag(f.name, "trace_")] + (["--hierarchy"] if f.name == "hierarchy" else [])
+        e.add_argument(
+            *names,
+            dest=f"trace_{f.name}",
+            type=value_parser(hints[f.name]),
+            metavar=f.name.upper(),
+            help=f"light-field tracer: probes.TraceConfig.{f.name} (docs/tracer.md) {{runner}}",
+            action=_RunnerDefault,
+        )
+
+
+#: ``TraceConfig`` fields with an option of their own: ``--trace-engine`` (the runner's
+#: ``eval.trace_engine``) and ``progress`` (``--quiet``).
+TRACE_SET_ELSEWHERE = ("engine", "progress")
 
 
 def _add_sample_options(e) -> None:
@@ -190,39 +214,65 @@ RUNNER_KEYS = {
     "bake_noise_target": "bake.noise_target",
     "bake_max_spp": "bake.max_spp",
     "trace_engine": "eval.trace_engine",
-    "hierarchy": "probes.TraceConfig.hierarchy",
 }
+
+
+@functools.cache
+def runner_keys() -> Mapping:
+    """:data:`RUNNER_KEYS` and the light-field tracer's options (``trace_<name>`` → ``lightfield.<name>``,
+    every ``probes.TraceConfig`` field but those of :data:`TRACE_SET_ELSEWHERE`). Read-only."""
+    import dataclasses
+
+    from ..probes import TraceConfig
+
+    trace = {
+        f"trace_{f.name}": f"lightfield.{f.name}"
+        for f in dataclasses.fields(TraceConfig)
+        if f.name not in TRACE_SET_ELSEWHERE
+    }
+    return MappingProxyType(RUNNER_KEYS | trace)
 
 
 @functools.cache  # fixed for the process; the options, the checks and --help all read it
 def runner_defaults() -> Mapping:
-    """The default of every option of :data:`RUNNER_KEYS`, read from the runner's defaults
-    (``ExperimentConfig()``: its ``bake``, ``tracer`` and ``eval`` groups; the tracer's hierarchy is the
-    library's ``TraceConfig``'s, as in a run). Read-only."""
-    from ..experiment import ExperimentConfig, bake_values, eval_values
-    from ..probes import TraceConfig
+    """The default of every option of :func:`runner_keys`, read from the runner's defaults
+    (``ExperimentConfig()``: its ``bake``, ``tracer``, ``eval`` and ``lightfield`` groups). Read-only."""
+    from ..experiment import ExperimentConfig, bake_values, eval_values, trace_values
 
     cfg = ExperimentConfig()
     ev, bake = eval_values(cfg), bake_values(cfg)
     out = {k: ev[k] for k in RUNNER_KEYS if k in ev}
+    out |= {f"trace_{k}": v for k, v in trace_values(cfg).items() if k not in TRACE_SET_ELSEWHERE}
     out |= {"radiance_res": bake["radiance_res"], "geometry_res": bake["geometry_res"]}
     out |= {"bake_noise_target": bake["noise_target"], "bake_max_spp": bake["max_spp"]}
     out |= {"bake_spp": cfg.bake.spp, "seed": cfg.seed, "trace_engine": cfg.eval.trace_engine}
-    out["hierarchy"] = TraceConfig().hierarchy
     return MappingProxyType(out)
 
 
+class _NotGiven:
+    """The value of a runner-default option not on the command line."""
+
+    def __repr__(self) -> str:
+        return "the runner's"
+
+
+NOT_GIVEN = _NotGiven()
+
+
 class _RunnerDefault(argparse._StoreAction):
-    """An option whose default is the runner's: parsed as None when not given; its help's ``{runner}``
-    reads ``(default: 64, eval.width)`` from the runner's defaults, only when ``--help`` prints it (the
-    parser stays light to build)."""
+    """An option whose default is the runner's: parsed as :data:`NOT_GIVEN` when not given (``none`` may be
+    a value given: ``--trace-edge-tol none``); its help's ``{runner}`` reads ``(default: 64, eval.width)``
+    from the runner's defaults, only when ``--help`` prints it (the parser stays light to build)."""
+
+    def __init__(self, *args, **kwargs) -> None:
+        super().__init__(*args, **{**kwargs, "default": NOT_GIVEN})
 
     @property
     def help(self) -> str:
         if "{runner}" not in self._help:
             return self._help
         value = runner_defaults()[self.dest]
-        return self._help.replace("{runner}", f"(default: {value}, the runner's {RUNNER_KEYS[self.dest]})")
+        return self._help.replace("{runner}", f"(default: {value}, the runner's {runner_keys()[self.dest]})")
 
     @help.setter
     def help(self, text: str) -> None:
@@ -230,24 +280,25 @@ class _RunnerDefault(argparse._StoreAction):
 
 
 def resolved_options(args: argparse.Namespace) -> dict:
-    """The value of every option of :data:`RUNNER_KEYS`: the command line's, else the runner's default."""
-    given = {k: getattr(args, k, None) for k in RUNNER_KEYS}
-    return {k: v if given[k] is None else given[k] for k, v in runner_defaults().items()}
+    """The value of every option of :func:`runner_keys`: the command line's, else the runner's default."""
+    given = {k: getattr(args, k, NOT_GIVEN) for k in runner_keys()}
+    return {k: v if given[k] is NOT_GIVEN else given[k] for k, v in runner_defaults().items()}
 
 
 def _as_option(e: ConfigError) -> ConfigError:
     """``EvalConfig.width must be ...`` as ``--width: EvalConfig.width must be ...`` (the option first):
-    an EvalConfig / BakeConfig / TraceConfig field set from the option of the same name (RUNNER_KEYS;
-    ``TraceConfig.engine`` is ``--trace-engine``)."""
+    an EvalConfig / BakeConfig / TraceConfig field set from the option of the same name (:func:`runner_keys`;
+    a ``BakeConfig`` field's option may be ``--bake-<name>``, a ``TraceConfig`` field's is
+    ``--trace-<name>``)."""
     m = re.match(r"(EvalConfig|BakeConfig|TraceConfig)\.(\w+)", str(e))
     if m is None:
         return e
-    name = "trace_engine" if m.group(1, 2) == ("TraceConfig", "engine") else m.group(2)
-    if (
-        m.group(1) == "BakeConfig" and f"bake_{name}" in RUNNER_KEYS
-    ):  # --bake-noise-target, not --noise-target
+    kind, name = m.group(1, 2)
+    if kind == "TraceConfig":
+        name = f"trace_{name}"
+    elif kind == "BakeConfig" and f"bake_{name}" in runner_keys():  # --bake-noise-target, not --noise-target
         name = f"bake_{name}"
-    if name not in RUNNER_KEYS:
+    if name not in runner_keys():
         return e
     return ConfigError(f"--{name.replace('_', '-')}: {e}")
 
@@ -263,7 +314,14 @@ def eval_config(args: argparse.Namespace):
     values = eval_values(ExperimentConfig())
     values |= {k: opt[k] for k in values if k in opt}
     try:
-        trace = TraceConfig(engine=opt["trace_engine"], hierarchy=opt["hierarchy"])
+        trace = TraceConfig(
+            engine=opt["trace_engine"],
+            **{
+                k.removeprefix("trace_"): v
+                for k, v in opt.items()
+                if k.startswith("trace_") and k != "trace_engine"
+            },
+        )
         config = EvalConfig(**values, trace=trace, seed=opt["seed"])
     except ConfigError as e:
         raise _as_option(e) from None

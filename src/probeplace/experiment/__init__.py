@@ -22,6 +22,7 @@ from ._schema import BakeStage as BakeStage
 from ._schema import EvalStage as EvalStage
 from ._schema import ExperimentConfig as ExperimentConfig
 from ._schema import ExportConfig as ExportConfig
+from ._schema import LightFieldStage as LightFieldStage
 from ._schema import PlacerConfig as PlacerConfig
 from ._schema import RefinerConfig as RefinerConfig
 from ._schema import SceneStage as SceneStage
@@ -30,5 +31,7 @@ from ._schema import bake_config as bake_config
 from ._schema import bake_values as bake_values
 from ._schema import eval_config as eval_config
 from ._schema import eval_values as eval_values
+from ._schema import place_values as place_values
 from ._schema import to_config as to_config
+from ._schema import trace_values as trace_values
 from ._schema import validate as validate

@@ -37,6 +37,7 @@ from ._schema import (
     config_to_yaml,
     eval_config,
     load_config_yaml,
+    place_values,
     to_config,
 )
 
@@ -451,16 +452,9 @@ def _place_stage(cfg: ExperimentConfig, scene, translation, partial: Path, final
         placed = place(
             scene,
             method=cfg.placer.method,
-            budget=_placer_budget(cfg, scene),
-            refiner=None if cfg.refiner.name == "none" else cfg.refiner.name,
-            objective=cfg.placer.objective,
-            seed=cfg.seed,
-            target=cfg.placer.target,
-            n_opt_samples=cfg.placer.n_opt_samples,
             options=_placer_options(cfg, translation),
-            clearance=cfg.placer.clearance,
-            region=cfg.placer.region,
             config=FitnessConfig(coverage=cfg.placer.coverage),
+            **(place_values(cfg) | {"budget": _placer_budget(cfg, scene)}),
         )
         jax.block_until_ready(placed.probes)
     probes = placed.probes

@@ -25,6 +25,8 @@ from typing import Any
 
 from .._core import ConfigError, check_count, is_auto
 from ..evaluate import EvalConfig as _LibEvalConfig
+from ..placement import LIBRARY_ONLY as _LIBRARY_ONLY
+from ..placement import PlaceRequest as _PlaceRequest
 from ..probes import BakeConfig as _LibBakeConfig
 from ..probes import TraceConfig as _LibTraceConfig
 from ..render import RenderConfig as _LibRenderConfig
@@ -53,39 +55,6 @@ class SceneStage:
 
 
 @dataclass
-class PlacerConfig:
-    """Probe placement (``placement.place``).
-
-    Attributes:
-        method: a registered placement method (``placement.METHODS``).
-        budget: ``"auto"`` (fewest probes reaching ``target`` coverage) or the exact probe count.
-        memory_budget: instead of ``budget``, the bytes the baked probes may take (``"64MiB"``): the count
-            is the most probes whose maps fit at this experiment's bake settings (``probes.probe_bytes``).
-        clearance: smallest probe-to-geometry distance, scene units; ``None``: from the scene's size.
-        region: where probes may go, ``{boxes: [[lo, hi], ...], height: [a, b]}``; ``None``: anywhere.
-        objective: refiner objective: ``coverage``, ``wang`` or ``shading`` (docs/placement.md).
-        target: coverage target of the automatic budget, in (0, 1].
-        coverage: which surface counts toward coverage: ``reachable`` (every surface a probe in the views'
-            reachable space sees head-on) or ``views`` (what the view cameras' positions see;
-            ``placement.FitnessConfig.coverage``).
-        n_opt_samples: surface samples of the refiner's problem.
-        options: the method's options (``placement.place``'s ``options``, e.g. ``{jitter: 0.5}`` for the
-            grid); empty for methods without options.
-    """
-
-    method: str = "skeleton"
-    budget: Any = "auto"
-    memory_budget: Any = None
-    clearance: Any = None
-    region: Any = None
-    objective: str = "coverage"
-    target: float = 1.0
-    coverage: str = "reachable"
-    n_opt_samples: int = 1500
-    options: dict[str, Any] = field(default_factory=dict)
-
-
-@dataclass
 class RefinerConfig:
     """Refinement: ``none`` or a ``placement.REFINERS`` name (a baseline placer refines its survivors)."""
 
@@ -105,6 +74,13 @@ def _is_scalar(tp: Any) -> bool:
     return union and bool(args) and all(a in _SCALARS for a in args)
 
 
+def _is_key(f: dataclasses.Field, tp: Any) -> bool:
+    """A library field that is a config key: a scalar (:func:`_is_scalar`), or a field whose ``help``
+    metadata offers it to the front doors (``placement.PlaceRequest``: ``region``, a mapping)."""
+    help_text = f.metadata.get("help")
+    return _is_scalar(tp) if help_text is None else help_text != _LIBRARY_ONLY
+
+
 def _stage_schema(name: str, doc: str, lib: type, *, head: list, tail: list, runner_set: set, defaults: dict):
     """The config group of a library settings dataclass ``lib``: ``head``, then every scalar field of
     ``lib`` not set by the runner itself (``runner_set``), with ``lib``'s type and default (or
@@ -114,13 +90,44 @@ def _stage_schema(name: str, doc: str, lib: type, *, head: list, tail: list, run
     own = [
         (f.name, hints[f.name], field(default=defaults.get(f.name, f.default)))
         for f in dataclasses.fields(lib)
-        if f.name not in runner_set and _is_scalar(hints[f.name])
+        if f.name not in runner_set and _is_key(f, hints[f.name])
     ]
     cls = dataclasses.make_dataclass(name, [*head, *own, *tail])
     # make_dataclass would name the module ``types`` (Python 3.11): pickling (joblib / Ray launchers) finds
     # the class by its module
     cls.__module__, cls.__doc__ = __name__, doc
     return cls
+
+
+PlacerConfig = _stage_schema(
+    "PlacerConfig",
+    """Probe placement (``placement.place``).
+
+    Every field of ``placement.PlaceRequest`` (the stage's one schema) is a key, with its type, default
+    and checks, but those the runner sets: ``refiner`` (the ``refiner`` group), ``seed`` (the run's) and the
+    library-only ``config`` and ``caster``. A field added to ``PlaceRequest`` becomes a key here, a flag of
+    ``probeplace place`` and a keyword of ``place`` without another edit. The runner's own:
+
+    Attributes:
+        method: a registered placement method (``placement.METHODS``).
+        memory_budget: instead of ``budget``, the bytes the baked probes may take (``"64MiB"``): the count
+            is the most probes whose maps fit at this experiment's bake settings (``probes.probe_bytes``).
+        coverage: which surface counts toward coverage: ``reachable`` (every surface a probe in the views'
+            reachable space sees head-on) or ``views`` (what the view cameras' positions see;
+            ``placement.FitnessConfig.coverage``).
+        options: the method's options (``placement.place``'s ``options``, e.g. ``{jitter: 0.5}`` for the
+            grid); empty for methods without options.
+    """,
+    _PlaceRequest,
+    head=[("method", str, field(default="skeleton"))],
+    tail=[
+        ("memory_budget", Any, field(default=None)),
+        ("coverage", str, field(default="reachable")),
+        ("options", dict[str, Any], field(default_factory=dict)),
+    ],
+    runner_set={"refiner", "seed"},
+    defaults={},
+)
 
 
 BakeStage = _stage_schema(
@@ -214,6 +221,22 @@ EvalStage = _stage_schema(
 )
 
 
+LightFieldStage = _stage_schema(
+    "LightFieldStage",
+    """The light-field tracer of the evaluation's glossy rays (``probes.TraceConfig``, docs/tracer.md).
+
+    Every scalar field of ``probes.TraceConfig`` is a key, with its meaning, default and checks, but
+    ``engine`` (``eval.trace_engine``, whose default here is ``"wavefront"``). Not to be confused with the
+    ``tracer`` group, the reference path tracer.
+    """,
+    _LibTraceConfig,
+    head=[],
+    tail=[],
+    runner_set={"engine"},
+    defaults={},
+)
+
+
 @dataclass
 class ExportConfig:
     """Engine exports of the baked probes (``export.export_probes`` format names), e.g. ``[gltf]``."""
@@ -254,6 +277,7 @@ class ExperimentConfig:
     bake: BakeStage = field(default_factory=BakeStage)
     tracer: TracerConfig = field(default_factory=TracerConfig)
     eval: EvalStage = field(default_factory=EvalStage)
+    lightfield: LightFieldStage = field(default_factory=LightFieldStage)
     export: ExportConfig = field(default_factory=ExportConfig)
 
 
@@ -274,6 +298,20 @@ def _rekeyed(lib: type, values: dict, keys: dict[str, str]) -> Any:
             raise
         rest = m.group(2) if m.group(2).startswith("must") else str(e)
         raise ConfigError(f"{keys[m.group(1)]}: {rest.replace('≥', '>=')}") from None
+
+
+def place_values(cfg: ExperimentConfig) -> dict:
+    """The ``placement.place`` settings (``PlaceRequest`` fields) a run places with: the ``placer``
+    group's, the ``refiner`` group's name and the run's seed (its ``budget`` as given: the runner turns a
+    ``memory_budget`` into a count once the scene is loaded)."""
+    refiner = None if cfg.refiner.name == "none" else cfg.refiner.name
+    return {**_library_values(cfg.placer, _PlaceRequest), "refiner": refiner, "seed": cfg.seed}
+
+
+def trace_values(cfg: ExperimentConfig) -> dict:
+    """The keyword arguments of ``probes.TraceConfig`` a run traces its glossy rays with: the
+    ``lightfield`` group's keys and ``eval.trace_engine``."""
+    return {**_library_values(cfg.lightfield, _LibTraceConfig), "engine": cfg.eval.trace_engine}
 
 
 def bake_values(cfg: ExperimentConfig) -> dict:
@@ -309,10 +347,9 @@ def eval_config(cfg: ExperimentConfig) -> _LibEvalConfig:
     values = eval_values(cfg)
     keys = {k: f"eval.{k}" for k in values}
     keys |= {k: f"tracer.{k}" for k in ("spp", "max_depth", *_TRACER_KEYS)}
-    try:
-        values["trace"] = _LibTraceConfig(engine=cfg.eval.trace_engine)
-    except ConfigError as e:
-        raise ConfigError(f"eval.trace_engine: {str(e).removeprefix('TraceConfig.engine ')}") from None
+    trace = trace_values(cfg)
+    trace_keys = {k: f"lightfield.{k}" for k in trace} | {"engine": "eval.trace_engine"}
+    values["trace"] = _rekeyed(_LibTraceConfig, trace, trace_keys)
     return _rekeyed(_LibEvalConfig, values, keys)
 
 
@@ -367,16 +404,8 @@ def _check_placer(cfg: ExperimentConfig) -> None:
         _fail("placer.method", f"must be one of {method_names()}", p.method)
     if p.coverage not in COVERAGE_RULES:
         _fail("placer.coverage", f"must be one of {COVERAGE_RULES}", p.coverage)
-    values = {
-        "budget": p.budget,
-        "refiner": None if cfg.refiner.name == "none" else cfg.refiner.name,
-        "objective": p.objective,
-        "target": p.target,
-        "n_opt_samples": p.n_opt_samples,
-        "clearance": p.clearance,
-        "region": p.region,
-    }
-    keys = {**{k: f"placer.{k}" for k in values}, "refiner": "refiner.name"}
+    values = place_values(cfg)
+    keys = {**{k: f"placer.{k}" for k in values}, "refiner": "refiner.name", "seed": "seed"}
     try:
         Region.from_config(p.region)  # its messages name the key under region: region.boxes[1][0] ...
     except ConfigError as e:

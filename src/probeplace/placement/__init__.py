@@ -15,6 +15,7 @@ from ._finish import result_coverage_detail as result_coverage_detail
 from ._place import place as place
 from ._place import save_top_view as save_top_view
 from ._place import smallest_full_grid as smallest_full_grid
+from ._registry import LIBRARY_ONLY as LIBRARY_ONLY
 from ._registry import PlacementMethod as PlacementMethod
 from ._registry import PlaceRequest as PlaceRequest
 from ._registry import PlaceResult as PlaceResult

@@ -7,18 +7,20 @@ method ends in ``_finish`` (valid space, exact budget, coverage, refinement).
 
 from __future__ import annotations
 
+import dataclasses
 import functools
 import time
 from pathlib import Path
+from typing import Any
 
 import jax
 import numpy as np
 
-from .._core import Scene, load_pyplot, stream
-from ..geometry import AbstractRayCaster, build_sdf
+from .._core import ConfigError, Scene, load_pyplot, stream
+from ..geometry import build_sdf
 from ._finish import coverage_context, make_usable, probe_set, refine_problem, valid_settings
 from ._registry import PlacementMethod, PlaceRequest, PlaceResult, get_method, register_method
-from .fitness import FitnessConfig, binary_coverage, binary_visibility, probe_clearance
+from .fitness import binary_coverage, binary_visibility, probe_clearance
 from .refine import get_refiner
 from .skeleton import auto_budget, medial_axis_seeds, reaches_target, skeleton_seeds
 from .space import grid_dims, uniform_grid
@@ -28,17 +30,8 @@ def place(
     scene: Scene,
     *,
     method: str = "skeleton+medial",
-    budget: int | str = "auto",
-    refiner: str | None = None,
-    objective: str = "coverage",
-    seed: int = 0,
-    target: float = 1.0,
-    n_opt_samples: int = 1500,
-    config: FitnessConfig | None = None,
-    caster: str | AbstractRayCaster | None = "auto",
     options: dict | None = None,
-    clearance: float | None = None,
-    region: dict | None = None,
+    **settings: Any,
 ) -> PlaceResult:
     """Place probes in ``scene``.
 
@@ -50,40 +43,25 @@ def place(
             count is nearest, ``"auto"`` = smallest full-coverage grid), ``lod-grid`` (Yang 2023; the
             level whose count is nearest the budget) or ``vardis`` (Vardis 2021 simplification of a dense
             grid down to the budget, ``"auto"`` = error tolerance).
-        budget: ``"auto"`` (fewest probes reaching ``target`` coverage) or the exact number of usable
-            probes: the method's own set is trimmed (least unique coverage first) or filled (farthest
-            valid point first) to it (``_budget``).
-        refiner: registry name (:data:`REFINERS`) or ``None``; refines on the soft ``objective`` with
-            ``n_opt_samples`` surface samples and is kept only if that objective improved
-            (``RefineResult.improved``) and every probe stays usable.
-        objective: the refiner's objective, ``coverage``, ``wang`` or ``shading``; the refined set is kept
-            only when it improved.
-        seed: PRNG seed (samples, refinement).
-        target: coverage target of the search.
-        n_opt_samples: samples of the refiner's problem.
-        config: fitness parameters.
-        caster: binary visibility of the search: ``"auto"`` (exact Embree occlusion rays when embreex
-            imports, else the SDF tracer), ``"embree"``, ``None``/``"sdf"`` (SDF sphere tracer), or a caster
-            object (any ``geometry.AbstractRayCaster``: its ``occluded_host`` decides).
         options: the method's options (its registered options dataclass, e.g. ``grid``'s ``dims``);
             must be empty for a method without options.
-        clearance: smallest free distance from probes to geometry (``None``: from the scene's size);
-            probes nearer are relocated along the SDF gradient, else dropped (``_valid``).
-        region: where probes may go: ``{"boxes": [[lo, hi], ...], "height": [a, b]}`` (``_region.Region``).
+        **settings: the fields of :class:`PlaceRequest`, the stage's one schema (``budget``, ``refiner``,
+            ``objective``, ``seed``, ``target``, ``n_opt_samples``, ``config``, ``caster``, ``clearance``,
+            ``region``; its attributes say what each does); an unknown name is refused.
 
     Returns:
         :class:`PlaceResult`: the probes, coverage, timings, refinement status and the method's record
         (``metadata``: the JSON record for ``save_probe_set``).
 
     Raises:
-        ConfigError: unknown method / refiner / option / objective, bad budget, target or
-            n_opt_samples (:class:`PlaceRequest`).
+        ConfigError: unknown method, option or setting; a setting :class:`PlaceRequest` refuses.
     """
     m = get_method(method)
-    request = PlaceRequest(
-        budget, refiner, objective, seed, target, n_opt_samples, config, caster, clearance, region
-    )
-    return m.place_fn(scene, request, m.parse_options(options))
+    unknown = sorted(settings.keys() - {f.name for f in dataclasses.fields(PlaceRequest)})
+    if unknown:
+        known = [f.name for f in dataclasses.fields(PlaceRequest)]
+        raise ConfigError(f"place: unknown setting {unknown[0]!r}; PlaceRequest's: {known}")
+    return m.place_fn(scene, PlaceRequest(**settings), m.parse_options(options))
 
 
 def _place_seeded(

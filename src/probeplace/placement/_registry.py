@@ -16,37 +16,85 @@ from typing import Any
 from .._core import ConfigError, ProbeSet
 from ..geometry import AbstractRayCaster
 
+#: The ``help`` of a :class:`PlaceRequest` field no front door sets (a Python object, not a value).
+LIBRARY_ONLY = "(library only)"
+
+
+def _help(text: str) -> dict:
+    """A :class:`PlaceRequest` field's metadata: the one-line help of its flag and config key."""
+    return {"help": text}
+
 
 @dataclass(frozen=True)
 class PlaceRequest:
-    """What ``place`` asks of every method (all but the method's own options).
+    """What ``place`` asks of every method (all but the method's own options): the placement stage's one
+    schema of settings. Every field is a keyword of :func:`place`; the runner's ``placer`` config group
+    (``experiment.PlacerConfig``) and ``probeplace place``'s flags are derived from the fields, their help
+    from each field's ``help`` metadata, their checks from :meth:`__post_init__`: a new setting is a field
+    here with its check (docs/architecture.md, "Adding a placer setting"). The front doors set a few
+    themselves: ``refiner`` (the runner's ``refiner.name``), ``seed`` (the run's), ``region`` (the CLI's
+    ``--height-band``); ``config`` and ``caster`` are the library's only (their ``help`` says so).
 
     Attributes:
-        budget: ``"auto"`` or the exact count of usable probes (``_budget``).
-        refiner: refiner registry name or ``None``.
+        budget: ``"auto"`` (fewest probes reaching ``target`` coverage) or the exact number of usable
+            probes: the method's own set is trimmed (least unique coverage first) or filled (farthest
+            valid point first) to it (``space._budget``).
+        refiner: registry name (``refine.REFINERS``) or ``None``; refines on the soft ``objective`` with
+            ``n_opt_samples`` surface samples and is kept only if that objective improved
+            (``RefineResult.improved``) and every probe stays usable.
         objective: the refiner's soft objective, ``coverage``, ``wang`` or ``shading``.
-        seed: PRNG seed.
-        target: coverage target of the automatic budget.
+        seed: PRNG seed (samples, refinement).
+        target: coverage target of the automatic budget, in (0, 1].
         n_opt_samples: surface samples of the refiner's problem.
         config: fitness parameters (``FitnessConfig``) or ``None`` for the defaults.
-        caster: binary visibility of the coverage: ``"auto"``, ``"embree"``, ``"sdf"``, ``None`` or a caster
-            object (any ``geometry.AbstractRayCaster``, used as given).
+        caster: binary visibility of the coverage: ``"auto"`` (exact Embree occlusion rays when embreex
+            imports, else the SDF tracer), ``"embree"``, ``None``/``"sdf"`` (SDF sphere tracer), or a caster
+            object (any ``geometry.AbstractRayCaster``: its ``occluded_host`` decides).
         clearance: smallest free distance from a probe to geometry, scene units; ``None``: derived from
-            the scene (``_valid.default_clearance``). Probes nearer are relocated, else dropped.
-        region: where probes may go (``_region.Region.from_config``: ``{"boxes": [...], "height": [a, b]}``);
-            ``None``: the whole scene box.
+            the scene (``space.default_clearance``). Probes nearer are relocated along the SDF gradient,
+            else dropped.
+        region: where probes may go (``space.Region.from_config``: ``{"boxes": [[lo, hi], ...],
+            "height": [a, b]}``); ``None``: the whole scene box.
     """
 
-    budget: int | str = "auto"
-    refiner: str | None = None
-    objective: str = "coverage"
-    seed: int = 0
-    target: float = 1.0
-    n_opt_samples: int = 1500
-    config: Any = None
-    caster: str | AbstractRayCaster | None = "auto"
-    clearance: float | None = None
-    region: Any = None
+    budget: int | str = field(
+        default="auto", metadata=_help("'auto' (fewest probes reaching --target) or the exact probe count")
+    )
+    refiner: str | None = field(
+        default=None, metadata=_help("refine the placement: a placement.REFINERS name, or none")
+    )
+    objective: str = field(
+        default="coverage", metadata=_help("the refiner's objective: coverage, wang or shading")
+    )
+    seed: int = field(default=0, metadata=_help("random seed (samples, refinement)"))
+    target: float = field(default=1.0, metadata=_help("coverage target of the automatic budget, in (0, 1]"))
+    n_opt_samples: int = field(default=1500, metadata=_help("surface samples of the refiner's problem"))
+    config: Any = field(default=None, metadata=_help(LIBRARY_ONLY))
+    caster: str | AbstractRayCaster | None = field(default="auto", metadata=_help(LIBRARY_ONLY))
+    clearance: float | None = field(
+        default=None,
+        metadata=_help(
+            "smallest probe-to-geometry distance, scene units (default: from the scene's size); nearer "
+            "probes are relocated"
+        ),
+    )
+    region: Any = field(
+        default=None,
+        metadata=_help("where probes may go: {boxes: [[lo, hi], ...], height: [a, b]}; none: anywhere"),
+    )
+
+    @classmethod
+    def settings(cls, *, scalar: bool = False) -> dict[str, tuple[Any, Any, str]]:
+        """name → (type, default, help) of the fields a front door may set (not the library-only ones);
+        ``scalar``: only those a flag or a config value of one scalar can hold (not ``region``)."""
+        import typing
+
+        hints = typing.get_type_hints(cls)
+        return {
+            f.name: (hints[f.name], f.default, f.metadata["help"])
+            for f in dataclasses.fields(cls)
+            if f.metadata["help"] != LIBRARY_ONLY and not (scalar and hints[f.name] is Any)
+        }
 
     def __post_init__(self):
         """The checks of ``place``'s arguments (the experiment runner builds a request to run them too)."""
