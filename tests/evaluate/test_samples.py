@@ -16,11 +16,10 @@ import dataclasses
 import logging
 import math
 
-import jax
 import pytest
 
 from probeplace._core import PILOT_Z, ConfigError, ResourceError, smallest_count
-from probeplace.evaluate import EvalConfig, check_eval_memory, evaluate
+from probeplace.evaluate import EvalConfig, IndirectScores, check_eval_memory, evaluate
 from probeplace.evaluate._samples import (
     COUNT_OF,
     CountChoice,
@@ -29,33 +28,11 @@ from probeplace.evaluate._samples import (
     predicted_floor_over_black,
     samples_metrics,
 )
-from probeplace.geometry import BruteForceCaster
-from probeplace.probes import BakeConfig, bake_probes
-from probeplace.scene import load_scene
-from tests.helpers import albedo_lit, grid_probe_set
 
 #: Below the glossy pilot's own 0.04 at 8 paths (measured), so both counts are chosen above the pilot.
 TARGET = 0.03
 #: Metrics that are wall times: the only ones two runs of the same numbers may differ in.
 TIMES = ("shading_s_per_frame", "shading_compile_s", "reference_s")
-
-
-@pytest.fixture(scope="module")
-def cornell():
-    scene = load_scene("cornell_box")
-    caster = BruteForceCaster(scene)
-    probes = grid_probe_set(scene, (2, 2, 2))
-    cfg = BakeConfig(
-        radiance_res=8, irradiance_res=4, moments_res=4, n_sub=1, probes_per_batch=8, progress=False
-    )
-    # a stand-in for a path-traced bake: the probes' radiance does not enter the reference's noise, which
-    # is what is tested here
-    radiance = albedo_lit(scene, caster)
-    lf = bake_probes(scene, probes, caster=caster, radiance_fn=radiance, key=jax.random.key(0), config=cfg)
-    base = EvalConfig(
-        width=16, height=16, glossy_spp=4, max_depth=4, timing_repeats=1, bootstrap_resamples=20
-    )
-    return scene, lf, caster, base
 
 
 def _eval(cornell, **kw):
@@ -210,9 +187,11 @@ def test_the_samples_group_is_json_without_infinities():
         "diffuse_indirect": CountChoice(64, "target", noisy, predicted_floor_over_black(noisy, 64)),
         "glossy_indirect": CountChoice(4, "fixed"),
     }
-    figures = {"noise_floor_diffuse_indirect": 1e-3, "mse_black_diffuse_indirect": 2e-3}
-    figures |= {"noise_floor_glossy_indirect": 0.0, "mse_black_glossy_indirect": 0.0}
-    out = samples_metrics(EvalConfig(spp="auto", max_spp=64), choices, figures)
+    scores = {
+        "diffuse_indirect": IndirectScores(noise_floor=1e-3, mse_black=2e-3),
+        "glossy_indirect": IndirectScores(noise_floor=0.0, mse_black=0.0),
+    }
+    out = samples_metrics(EvalConfig(spp="auto", max_spp=64), choices, scores).to_json()
     json.dumps(out, allow_nan=False)
     assert out["predicted_floor_over_black"] == {"diffuse_indirect": None, "glossy_indirect": None}
     assert out["floor_over_black"] == {"diffuse_indirect": 0.5, "glossy_indirect": 0.0}

@@ -71,6 +71,15 @@ from ._decompose import (
     pixel_means,
     relative_mse,
 )
+from ._metrics import (
+    EVAL_COMPONENTS,
+    ComponentScores,
+    DiffuseScores,
+    EvalMetrics,
+    GlossyScores,
+    RunSettings,
+    metric_key,
+)
 from ._samples import COUNT_OF, CountChoice, crn_for_target, reference_for_target, samples_metrics
 from ._steps import (
     CrnReference,
@@ -85,7 +94,6 @@ from ._steps import (
 
 log = logging.getLogger(__name__)
 
-EVAL_COMPONENTS = ("diffuse_indirect", "glossy_indirect", "full")
 #: The result's images (:func:`_eval_images`), in order: references, probe images, their errors.
 EVAL_IMAGES = (
     "ref_emission", "ref_direct", "ref_diffuse_indirect", "ref_glossy_indirect",
@@ -95,16 +103,51 @@ EVAL_IMAGES = (
 )  # fmt: skip
 
 
-@dataclasses.dataclass(frozen=True)
+@dataclasses.dataclass(frozen=True, init=False)
 class EvalResult:
-    """``metrics``: JSON-ready dict (docs/evaluate.md); ``images``: name → (h, w, 3) float32 arrays
-    (``ref_*``, ``probe_*`` per component, ``error_*`` = |probe − ref|, ``perfect_trace_glossy_indirect``);
-    ``probe_error``: each probe's share of the diffuse and glossy MSE (``_attribute.probe_error``, the
-    arrays of ``probe_error.npz``), or None when not recorded."""
+    """``scores``: the metrics (:class:`EvalMetrics`; docs/evaluate.md); ``images``: name → (h, w, 3)
+    float32 arrays (``ref_*``, ``probe_*`` per component, ``error_*`` = |probe − ref|,
+    ``perfect_trace_glossy_indirect``); ``probe_error``: each probe's share of the diffuse and glossy MSE
+    (``_attribute.probe_error``, the arrays of ``probe_error.npz``), or None when not recorded; ``extra``:
+    keys recorded beside the evaluation's in ``metrics.json`` (``probeplace evaluate``'s ``bake_samples``).
 
-    metrics: dict
+    :attr:`metrics` is the ``metrics.json`` dict, ``scores.to_json()`` then ``extra``. A result may be made
+    from such a dict instead of ``scores`` and ``extra`` (``metrics=``): ``EvalMetrics.from_json`` reads it
+    and its other keys become ``extra``; so ``dataclasses.replace(result, metrics={**result.metrics, k: v})``
+    adds a key (``metrics`` given wins over the ``scores`` and ``extra`` that ``replace`` passes along).
+    """
+
+    scores: EvalMetrics
     images: dict[str, np.ndarray]
     probe_error: dict[str, np.ndarray] | None = None
+    extra: dict = dataclasses.field(default_factory=dict)
+
+    def __init__(
+        self,
+        scores: EvalMetrics | None = None,
+        images: dict[str, np.ndarray] | None = None,
+        probe_error: dict[str, np.ndarray] | None = None,
+        extra: dict | None = None,
+        *,
+        metrics: dict | None = None,
+    ):
+        if metrics is not None:
+            scores = EvalMetrics.from_json(metrics)
+            own = set(scores.to_json())
+            extra = {k: v for k, v in metrics.items() if k not in own}
+        if not isinstance(scores, EvalMetrics):
+            raise TypeError(f"EvalResult: scores must be an EvalMetrics, got {type(scores).__name__}")
+        if images is None:
+            raise TypeError("EvalResult: images are required")
+        object.__setattr__(self, "scores", scores)
+        object.__setattr__(self, "images", images)
+        object.__setattr__(self, "probe_error", probe_error)
+        object.__setattr__(self, "extra", dict(extra or {}))
+
+    @property
+    def metrics(self) -> dict:
+        """The ``metrics.json`` dict (docs/evaluate.md): ``scores.to_json()``, then ``extra``."""
+        return {**self.scores.to_json(), **self.extra}
 
 
 def memory_bytes(lf: LightFieldProbes, subdivide: int) -> dict:
@@ -199,7 +242,8 @@ def evaluate(
 
 
 def _light_leak(ref_img: dict, ref_var: dict, probe_d, hit_px, sigmas: float) -> dict:
-    """The light-leak metrics of the diffuse indirect image (module docstring, "Light leak")."""
+    """The light-leak figures of the diffuse indirect image (module docstring, "Light leak"), as
+    :class:`DiffuseScores` fields."""
     ref, var = ref_img["diffuse_indirect"], ref_var["diffuse_indirect"]
     leak = light_leak(ref, var, probe_d, hit_px, sigmas=sigmas)
     n, judged = int(leak["flagged"].sum()), int(leak["judged"].sum())
@@ -212,11 +256,47 @@ def _light_leak(ref_img: dict, ref_var: dict, probe_d, hit_px, sigmas: float) ->
     }
 
 
-def _glossy_breakdown(scene, config: EvalConfig, prim, crn, shading, perfect, imgs) -> dict:
-    """The glossy error taken apart (``_decompose.py``, docs/evaluate.md): perfect trace, view
-    dependence, trace share, split by ray status, agreement, relative MSEs and bootstrap intervals."""
+def _diffuse_scores(config: EvalConfig, ref_img: dict, ref_var: dict, probe_d, hit_px) -> DiffuseScores:
+    """The diffuse indirect image against the render's: MSE, noise floor, black image, relative MSE,
+    interval, light leak."""
+    ref_d = ref_img["diffuse_indirect"]
+    return DiffuseScores(
+        mse=_mse(probe_d, ref_d),
+        noise_floor=float(np.mean(ref_var["diffuse_indirect"])),
+        # A black image (no indirect light at all) against the same references: a method above this adds
+        # more wrong light (leaks, self-hits) than it recovers.
+        mse_black=_mse(np.zeros_like(ref_d), ref_d),
+        relmse=relative_mse(probe_d, ref_d, eps=config.relmse_eps),
+        relmse_black=relative_mse(np.zeros_like(probe_d), ref_d, eps=config.relmse_eps),
+        ci95_mse=_ci(config, _sq_px(probe_d, ref_d)),
+        **_light_leak(ref_img, ref_var, probe_d, hit_px, config.leak_sigmas),
+    )
+
+
+def _full_scores(config: EvalConfig, ref_img: dict, ref_var: dict, probe_full) -> ComponentScores:
+    """The full image against the render's."""
+    return ComponentScores(
+        mse=_mse(probe_full, ref_img["full"]),
+        # Emission and direct are shared by both images, so only the reference's indirect noise remains.
+        noise_floor=float(np.mean(ref_var["diffuse_indirect"] + ref_var["glossy_indirect"])),
+        relmse=relative_mse(probe_full, ref_img["full"], eps=config.relmse_eps),
+        ci95_mse=_ci(config, _sq_px(probe_full, ref_img["full"])),
+    )
+
+
+def _ci(config: EvalConfig, per_pixel) -> tuple[float, float]:
+    """The 95 % bootstrap interval of the mean of ``per_pixel`` (``bootstrap_ci``, seed 0)."""
+    return tuple(bootstrap_ci(per_pixel, n_resamples=config.bootstrap_resamples, seed=0))
+
+
+def _glossy_scores(scene, config: EvalConfig, prim, crn, shading, perfect, imgs, ref_img) -> GlossyScores:
+    """The glossy indirect image against the CRN reference and its error taken apart (``_decompose.py``,
+    docs/evaluate.md): noise floor, black image, perfect trace, view dependence, trace share, split by
+    ray status, agreement, relative MSEs and bootstrap intervals. ``imgs``: the probe, CRN reference,
+    perfect-trace and view-independent images."""
     S = prim.spp
     probe_g, crn_ref_g, perfect_g, view_indep_g = imgs
+    H, W = prim.height, prim.width
     st = shading.status
     gl = st >= 0
     n_gl = int(gl.sum())
@@ -226,34 +306,38 @@ def _glossy_breakdown(scene, config: EvalConfig, prim, crn, shading, perfect, im
         shading.t, perfect.t_exact, st, rtol=config.agreement_rtol, atol=1e-4 * float(np.linalg.norm(hi - lo))
     )
     n_exact = int(np.sum(gl & np.isfinite(perfect.t_exact)))
-    boot = lambda v: bootstrap_ci(v, n_resamples=config.bootstrap_resamples, seed=0)
     rel = lambda a, b: relative_mse(a, b, eps=config.relmse_eps)
-    return {
-        "glossy_rays": n_gl,
-        "unresolved_share": float(np.mean(st[gl] == TraceStatus.UNRESOLVED)) if n_gl else 0.0,
+    floor = float(np.mean((prim.w_glossy**2 * crn.var_of_mean).reshape(H * W, S, 3).sum(axis=1) / S**2))
+    return GlossyScores(
+        mse=_mse(probe_g, crn_ref_g),
+        noise_floor=floor,
+        mse_no_crn=_mse(probe_g, ref_img["glossy_indirect"]),
+        mse_black=_mse(np.zeros_like(crn_ref_g), crn_ref_g),
+        glossy_rays=n_gl,
+        unresolved_share=float(np.mean(st[gl] == TraceStatus.UNRESOLVED)) if n_gl else 0.0,
         **_seen_shares(st, shading.origin_seen),
-        "mse_glossy_perfect_trace": terms["mse_perfect_trace"],
+        mse_perfect_trace=terms["mse_perfect_trace"],
         # What even exact probes storing view-independent radiance miss: the specular lobe of the surface a
         # glossy ray hits, toward the viewer (the CRN reference without that lobe, _steps.py).
-        "mse_glossy_view_dependence": _mse(view_indep_g, crn_ref_g),
-        "mse_glossy_trace_share": terms["trace_share"],
-        "trace_excess": terms["trace_excess"],
-        "mse_glossy_by_status": terms["by_status"],
-        "mse_glossy_resolved_only": terms["resolved_only"],
-        "glossy_status_share": {
+        mse_view_dependence=_mse(view_indep_g, crn_ref_g),
+        mse_trace_share=terms["trace_share"],
+        trace_excess=terms["trace_excess"],
+        mse_by_status=terms["by_status"],
+        mse_resolved_only=terms["resolved_only"],
+        glossy_status_share={
             name: (float(np.mean(st[gl] == k)) if n_gl else 0.0) for k, name in STATUS_NAMES.items()
         },
-        "glossy_hit_agreement": agree,
-        "glossy_hit_agreement_rays": n_agree,
-        "perfect_trace_fallbacks": int(np.sum(perfect.fallback)),
-        "perfect_trace_fallback_share": float(np.sum(perfect.fallback) / n_exact) if n_exact else 0.0,
-        "relmse_glossy_indirect": rel(probe_g, crn_ref_g),
-        "relmse_glossy_perfect_trace": rel(perfect_g, crn_ref_g),
-        "relmse_black_glossy_indirect": rel(np.zeros_like(crn_ref_g), crn_ref_g),
-        "ci95_mse_glossy_indirect": boot(terms["sq_px"]),
-        "ci95_mse_glossy_perfect_trace": boot(terms["sq_px_perfect"]),
-        "ci95_mse_glossy_trace_share": boot(terms["sq_px"] - terms["sq_px_perfect"]),
-    }
+        glossy_hit_agreement=agree,
+        glossy_hit_agreement_rays=n_agree,
+        perfect_trace_fallbacks=int(np.sum(perfect.fallback)),
+        perfect_trace_fallback_share=float(np.sum(perfect.fallback) / n_exact) if n_exact else 0.0,
+        relmse=rel(probe_g, crn_ref_g),
+        relmse_perfect_trace=rel(perfect_g, crn_ref_g),
+        relmse_black=rel(np.zeros_like(crn_ref_g), crn_ref_g),
+        ci95_mse=_ci(config, terms["sq_px"]),
+        ci95_mse_perfect_trace=_ci(config, terms["sq_px_perfect"]),
+        ci95_mse_trace_share=_ci(config, terms["sq_px"] - terms["sq_px_perfect"]),
+    )
 
 
 def _seen_shares(status: np.ndarray, seen: np.ndarray) -> dict:
@@ -292,26 +376,28 @@ def _eval_images(ref_img: dict, probe: dict, crn_ref_g, perfect_g, view_indep_g)
     return images
 
 
-def _run_settings(scene: Scene, lf: LightFieldProbes, view: str, config: EvalConfig, seed: int, prim) -> dict:
-    """The metrics that record what was evaluated and how (scene, view, sizes, samples, tracer, probes)."""
-    return {
-        "scene": scene.name,
-        "view": view,
-        "width": prim.width,
-        "height": prim.height,
-        "spp": config.spp,
-        "glossy_spp": prim.spp,
-        "glossy_ref_spp": config.glossy_ref_spp,
-        "max_depth": config.max_depth,
-        "shading": config.shading,
-        "trace_hierarchy": config.trace.hierarchy,
-        "glossy_filter": config.glossy_filter,
-        "glossy_lod_bias": config.glossy_lod_bias,
-        "seed": seed,
-        "n_probes": int(np.sum(np.asarray(lf.active))),
-        "n_probes_usable": int(np.sum(np.asarray(lf.active) & ~np.asarray(lf.inside))),
-        "probe_first_hit_lobes": None if lf.bake is None else lf.bake.first_hit_lobes,
-    }
+def _run_settings(
+    scene: Scene, lf: LightFieldProbes, view: str, config: EvalConfig, seed: int, prim
+) -> RunSettings:
+    """What was evaluated and how (scene, view, sizes, samples, tracer, probes)."""
+    return RunSettings(
+        scene=scene.name,
+        view=view,
+        width=prim.width,
+        height=prim.height,
+        spp=config.spp,
+        glossy_spp=prim.spp,
+        glossy_ref_spp=config.glossy_ref_spp,
+        max_depth=config.max_depth,
+        shading=config.shading,
+        trace_hierarchy=config.trace.hierarchy,
+        glossy_filter=config.glossy_filter,
+        glossy_lod_bias=config.glossy_lod_bias,
+        seed=seed,
+        n_probes=int(np.sum(np.asarray(lf.active))),
+        n_probes_usable=int(np.sum(np.asarray(lf.active) & ~np.asarray(lf.inside))),
+        probe_first_hit_lobes=None if lf.bake is None else lf.bake.first_hit_lobes,
+    )
 
 
 def score(
@@ -328,9 +414,9 @@ def score(
     *,
     counts: dict[str, CountChoice] | None = None,
 ) -> EvalResult:
-    """Images and metrics (docs/evaluate.md) from the steps' results. ``counts``: how the reference's
-    counts were chosen (``evaluate`` passes them; ``None``: the fixed counts of ``config``), for the
-    ``samples`` group."""
+    """Images and metrics (:class:`EvalMetrics`, docs/evaluate.md) from the steps' results. ``counts``:
+    how the reference's counts were chosen (``evaluate`` passes them; ``None``: the fixed counts of
+    ``config``), for the ``samples`` group."""
     if counts is None:
         if is_auto(config.spp) or is_auto(config.glossy_ref_spp):
             raise ConfigError("score: config's counts are 'auto'; pass the counts the steps rendered with")
@@ -343,51 +429,36 @@ def score(
     crn_ref_g = img(w_gl * crn.radiance)
     perfect_g = img(w_gl * perfect.radiance)
     view_indep_g = img(w_gl * crn.diffuse_at_hit)
-    floor_g = float(np.mean((w_gl**2 * crn.var_of_mean).reshape(H * W, S, 3).sum(axis=1) / S**2))
     probe_d = img(prim.rho_d * shading.irradiance / np.pi)
     probe_full = ref_img["emission"] + ref_img["direct"] + probe_d + probe_g
     hit_px = img(prim.valid[:, None].astype(np.float64))[..., 0] > 0
     probe = {"diffuse_indirect": probe_d, "glossy_indirect": probe_g, "full": probe_full}
     images = _eval_images(ref_img, probe, crn_ref_g, perfect_g, view_indep_g)
 
-    boot = lambda v: bootstrap_ci(v, n_resamples=config.bootstrap_resamples, seed=0)
-    rel = lambda a, b: relative_mse(a, b, eps=config.relmse_eps)
-    metrics = {
-        **_run_settings(scene, lf, view, config, seed, prim),
-        "mse_glossy_indirect": _mse(probe_g, crn_ref_g),
-        "noise_floor_glossy_indirect": floor_g,
-        "mse_glossy_indirect_no_crn": _mse(probe_g, ref_img["glossy_indirect"]),
-        "mse_diffuse_indirect": _mse(probe_d, ref_img["diffuse_indirect"]),
-        # A black image (no indirect light at all) against the same references: a method above this adds
-        # more wrong light (leaks, self-hits) than it recovers.
-        "mse_black_glossy_indirect": _mse(np.zeros_like(crn_ref_g), crn_ref_g),
-        "mse_black_diffuse_indirect": _mse(
-            np.zeros_like(ref_img["diffuse_indirect"]), ref_img["diffuse_indirect"]
-        ),
-        "noise_floor_diffuse_indirect": float(np.mean(ref_var["diffuse_indirect"])),
-        "mse_full": _mse(probe_full, ref_img["full"]),
-        # Emission and direct are shared by both images, so only the reference's indirect noise remains.
-        "noise_floor_full": float(np.mean(ref_var["diffuse_indirect"] + ref_var["glossy_indirect"])),
-        **_light_leak(ref_img, ref_var, probe_d, hit_px, config.leak_sigmas),
-        **_glossy_breakdown(
-            scene, config, prim, crn, shading, perfect, (probe_g, crn_ref_g, perfect_g, view_indep_g)
-        ),
-        "relmse_diffuse_indirect": rel(probe_d, ref_img["diffuse_indirect"]),
-        "relmse_black_diffuse_indirect": rel(np.zeros_like(probe_d), ref_img["diffuse_indirect"]),
-        "relmse_full": rel(probe_full, ref_img["full"]),
-        "ci95_mse_diffuse_indirect": boot(_sq_px(probe_d, ref_img["diffuse_indirect"])),
-        "ci95_mse_full": boot(_sq_px(probe_full, ref_img["full"])),
-        "bootstrap_resamples": config.bootstrap_resamples,
-        "relmse_eps": config.relmse_eps,
-        "shading_s_per_frame": shading.seconds_per_frame,
-        "shading_compile_s": shading.compile_seconds,
-        "reference_s": ref.seconds,
-        "memory_bytes": memory_bytes(lf, config.trace.subdivide),
-    }
-    metrics["samples"] = samples_metrics(config, counts, metrics)
+    diffuse = _diffuse_scores(config, ref_img, ref_var, probe_d, hit_px)
+    glossy = _glossy_scores(
+        scene, config, prim, crn, shading, perfect, (probe_g, crn_ref_g, perfect_g, view_indep_g), ref_img
+    )
+    samples = samples_metrics(config, counts, {"diffuse_indirect": diffuse, "glossy_indirect": glossy})
+    scores = EvalMetrics(
+        settings=_run_settings(scene, lf, view, config, seed, prim),
+        diffuse_indirect=diffuse,
+        glossy_indirect=glossy,
+        full=_full_scores(config, ref_img, ref_var, probe_full),
+        bootstrap_resamples=config.bootstrap_resamples,
+        relmse_eps=config.relmse_eps,
+        shading_s_per_frame=shading.seconds_per_frame,
+        shading_compile_s=shading.compile_seconds,
+        reference_s=ref.seconds,
+        memory_bytes=memory_bytes(lf, config.trace.subdivide),
+        samples=samples,
+    )
     chosen = any(c.chosen_by == "target" for c in counts.values())
-    if chosen and not metrics["samples"]["target_met"]:  # fixed counts were asked for: no warning
-        ratios = ", ".join(f"{c} {v:.3g}" for c, v in metrics["samples"]["floor_over_black"].items())
+    if chosen and not samples.target_met:  # fixed counts were asked for: no warning
+        ratios = ", ".join(
+            f"{c} {v:.3g}" if v is not None else f"{c} n/a (black MSE 0)"
+            for c, v in samples.floor_over_black.items()
+        )
         log.warning(
             "reference noise floor ÷ black MSE: %s; above the noise target %g (metrics.json: samples)",
             ratios,
@@ -396,5 +467,5 @@ def score(
     shares = probe_error(lf.pos_world, prim, shading, probe_d, ref_img["diffuse_indirect"], crn.radiance)
     if shares is not None:
         for c in ("diffuse_indirect", "glossy_indirect"):
-            shares[f"mse_{c}"] = np.asarray(metrics[f"mse_{c}"], np.float64)
-    return EvalResult(metrics=metrics, images=images, probe_error=shares)
+            shares[metric_key("mse", c)] = np.asarray(scores.component(c).mse, np.float64)
+    return EvalResult(scores=scores, images=images, probe_error=shares)

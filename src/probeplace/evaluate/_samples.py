@@ -33,12 +33,14 @@ import dataclasses
 import logging
 import math
 import time
+from collections.abc import Mapping
 
 import numpy as np
 
 from .._core import PILOT_Z, is_auto, json_number, mean_and_se, smallest_count
 from ._config import EvalConfig
 from ._decompose import pixel_means
+from ._metrics import IndirectScores, SampleCounts
 from ._steps import CrnReference, PrimarySamples, ReferenceImages, crn_reference, render_reference
 
 log = logging.getLogger(__name__)
@@ -160,32 +162,35 @@ def crn_for_target(scene, prim: PrimarySamples, config: EvalConfig, *, seed: int
     return crn, choice
 
 
-def samples_metrics(config: EvalConfig, choices: dict[str, CountChoice], metrics: dict) -> dict:
+def samples_metrics(
+    config: EvalConfig, choices: dict[str, CountChoice], scores: Mapping[str, IndirectScores]
+) -> SampleCounts:
     """``metrics.json``'s ``samples`` group (docs/evaluate.md): the counts, how each was chosen, the
-    pilot's figures and, for every scored component, the final pass's floor ÷ black MSE (``metrics``:
-    the evaluation's own ``noise_floor_*`` and ``mse_black_*``) and whether all meet the target."""
+    pilot's figures and, for every scored component, the final pass's floor ÷ black MSE (``scores``: the
+    evaluation's own records of those components, their ``noise_floor`` and ``mse_black``) and whether all
+    meet the target."""
     per = lambda f: {c: json_number(f(choices[c])) for c in COUNT_OF}
     pilot = lambda f: per(lambda ch: None if ch.pilot is None else f(ch.pilot))
     final = {}
     for c in COUNT_OF:
-        floor, black = metrics[f"noise_floor_{c}"], metrics[f"mse_black_{c}"]
+        floor, black = scores[c].noise_floor, scores[c].mse_black
         final[c] = floor / black if black > 0 else (0.0 if floor <= 0 else math.inf)
     met = all(v <= config.noise_target for v in final.values())
     auto = any(ch.chosen_by == "target" for ch in choices.values())
-    return {
-        "noise_target": config.noise_target,
-        "pilot_spp": config.pilot_spp if auto else None,
-        "max_spp": config.max_spp if auto else None,
-        "reference_spp": choices["diffuse_indirect"].spp,
-        "reference_chosen_by": choices["diffuse_indirect"].chosen_by,
-        "glossy_ref_spp": choices["glossy_indirect"].spp,
-        "glossy_ref_chosen_by": choices["glossy_indirect"].chosen_by,
-        "pilot_floor": pilot(lambda p: p.floor),
-        "pilot_floor_se": pilot(lambda p: p.floor_se),
-        "pilot_black": pilot(lambda p: p.black),
-        "pilot_floor_over_black": pilot(lambda p: p.floor / p.black if p.black > 0 else None),
-        "pilot_s": pilot(lambda p: p.seconds),
-        "predicted_floor_over_black": per(lambda ch: ch.predicted),
-        "floor_over_black": {c: json_number(v) for c, v in final.items()},
-        "target_met": met,
-    }
+    return SampleCounts(
+        noise_target=config.noise_target,
+        pilot_spp=config.pilot_spp if auto else None,
+        max_spp=config.max_spp if auto else None,
+        reference_spp=choices["diffuse_indirect"].spp,
+        reference_chosen_by=choices["diffuse_indirect"].chosen_by,
+        glossy_ref_spp=choices["glossy_indirect"].spp,
+        glossy_ref_chosen_by=choices["glossy_indirect"].chosen_by,
+        pilot_floor=pilot(lambda p: p.floor),
+        pilot_floor_se=pilot(lambda p: p.floor_se),
+        pilot_black=pilot(lambda p: p.black),
+        pilot_floor_over_black=pilot(lambda p: p.floor / p.black if p.black > 0 else None),
+        pilot_s=pilot(lambda p: p.seconds),
+        predicted_floor_over_black=per(lambda ch: ch.predicted),
+        floor_over_black={c: json_number(v) for c, v in final.items()},
+        target_met=met,
+    )

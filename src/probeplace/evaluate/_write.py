@@ -18,7 +18,8 @@ from PIL import Image
 from .._core import write_atomic, write_json_atomic
 from .._core._probe_files import PROBE_ERROR_FILE
 from ..render import save_exr, save_png
-from ._evaluate import EVAL_COMPONENTS, EVAL_IMAGES, EvalResult
+from ._evaluate import EVAL_IMAGES, EvalResult
+from ._metrics import EVAL_COMPONENTS
 
 # Per-file allowance for headers, metadata and the file system's block rounding, bytes.
 _FILE_OVERHEAD = 8192

@@ -56,6 +56,8 @@ from ._report_data import (
     comparator,
     compile_s,
     count_cells,
+    evaluation,
+    figure_words,
     full_coverage,
     grid_count,
     group,
@@ -66,6 +68,7 @@ from ._report_data import (
     memory,
     mse,
     n_unsplit,
+    noise_floor,
     pareto_front,
     placement_twins,
     pose,
@@ -74,7 +77,6 @@ from ._report_data import (
     shade_s,
     stage_run_s,
     unresolved,
-    words,
 )
 from ._report_html import write_report_html
 from ._results import iter_runs
@@ -83,11 +85,13 @@ __all__ = ["load_runs", "make_report", "pareto_front", "seed_paired_ratio"]
 
 
 def load_runs(exp_dir: str | os.PathLike) -> list[dict]:
-    """One record per finished run: its metrics plus ``dir`` (Path)."""
+    """One record per finished run: its metrics plus ``dir`` (Path) and ``evaluation``: its ``eval``
+    group as an ``evaluate.EvalMetrics`` (None for a run without one; ``_report_data.evaluation``)."""
     runs = []
     for d in iter_runs(exp_dir):
         m = json.loads((d / "metrics.json").read_text())
         m["dir"] = d
+        m["evaluation"] = evaluation(m)
         runs.append(m)
     return runs
 
@@ -164,12 +168,11 @@ def _ci(q: tuple | None, spec: str = ".3g") -> str:
 
 
 def _leak(r: dict) -> str:
-    """Light-leak pixels and their share of the judged pixels (``eval.light_leak_*``)."""
-    e = r.get("eval") or {}
+    """Light-leak pixels and their share of the judged pixels (the diffuse indirect's ``light_leak_*``)."""
     share = leak_share(r)
     if share is None:
         return "—"
-    return f"{e['light_leak_pixels']} ({share:.2%})"
+    return f"{evaluation(r).diffuse_indirect.light_leak_pixels} ({share:.2%})"
 
 
 def _all_runs_table(runs: list[dict], labels: list[str]) -> list[str]:
@@ -185,19 +188,19 @@ def _all_runs_table(runs: list[dict], labels: list[str]) -> list[str]:
         *_unsplit_note(runs),
     ]
     md += [
-        f"| run | probes | coverage | place s | bake s | compile s | {words(PRIMARY)} "
-        f"| {words('mse_diffuse_indirect')} | {words('mse_full')} | {words('noise_floor_glossy_indirect')} "
+        f"| run | probes | coverage | place s | bake s | compile s | {figure_words('mse')} "
+        f"| {figure_words('mse', 'diffuse_indirect')} | {figure_words('mse', 'full')} "
+        f"| {figure_words('noise_floor')} "
         "| shading ms/frame | memory KiB | unresolved | light leak px (share) | failures |",
         "|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---|",
     ]
     for r in sorted(runs, key=lambda r: (r["scene"], labels.index(r["label"]), r["n_probes"], r["seed"])):
-        e = r.get("eval") or {}
         mem = memory(r)
         md.append(
             f"| {r['run']} | {r['n_probes']} | {_coverage(r)} "
             f"| {_fmt(stage_run_s(r, 'place'), '.1f')} | {_fmt(stage_run_s(r, 'bake'), '.1f')} "
-            f"| {_fmt(compile_s(r), '.1f')} | {_fmt(mse(r))} | {_fmt(mse(r, 'mse_diffuse_indirect'))} "
-            f"| {_fmt(mse(r, 'mse_full'))} | {_fmt(e.get('noise_floor_glossy_indirect'))} "
+            f"| {_fmt(compile_s(r), '.1f')} | {_fmt(mse(r))} | {_fmt(mse(r, 'diffuse_indirect'))} "
+            f"| {_fmt(mse(r, 'full'))} | {_fmt(noise_floor(r))} "
             f"| {_fmt(None if shade_s(r) is None else 1e3 * shade_s(r), '.2f')} "
             f"| {_fmt(None if mem is None else mem / 1024, '.1f')} "
             f"| {_fmt(unresolved(r), '.1%')} | {_leak(r)} "
@@ -220,7 +223,7 @@ def _equal_count_table(rs, labels, scene, g_count: int, g_mse: float, twins: dic
             "",
         ]
     md += [
-        f"| method | {words(PRIMARY)} at that count [95 % t-interval over runs] | ÷ grid | how |",
+        f"| method | {figure_words('mse')} at that count [95 % t-interval over runs] | ÷ grid | how |",
         "|---|---:|---:|---|",
     ]
     by = cells(rs, lambda r: r["n_probes"], mse)
@@ -268,7 +271,8 @@ def _equal_memory_table(rs, labels, scene, twins: dict) -> list[str]:
         if not exact:
             md += ["_No two methods hold the same bytes: each method's runs nearest to this memory._", ""]
         md += [
-            f"| method | memory KiB | probes | runs | {words(PRIMARY)} [95 % t-interval over runs] | how |",
+            f"| method | memory KiB | probes | runs | {figure_words('mse')} [95 % t-interval over runs] "
+            "| how |",
             "|---|---:|---|---:|---:|---|",
         ]
         for lab in labels:
@@ -286,6 +290,13 @@ def _equal_memory_table(rs, labels, scene, twins: dict) -> list[str]:
                 f"| {_method(lab, at, twins)} | {near / 1024:.1f} | {counts} | {len(at)} | {_ci(q)} | {how} |"
             )
     return md
+
+
+def _usable(r: dict) -> int:
+    """The run's usable probes (its evaluation's ``n_probes_usable``; its probe count for a run without)."""
+    ev = evaluation(r)
+    n = None if ev is None else ev.settings.n_probes_usable
+    return r["n_probes"] if n is None else n
 
 
 def _paired_table(rs, labels, scene, count: int, twins: dict) -> list[str]:
@@ -309,10 +320,10 @@ def _paired_table(rs, labels, scene, count: int, twins: dict) -> list[str]:
         if not runs:
             continue
         ratios = []
-        for key in (PRIMARY, "mse_diffuse_indirect"):
-            pairs = [(v, w) for r in runs if (v := mse(r, key)) and (w := mse(grid[r["seed"]], key))]
+        for comp in (PRIMARY, "diffuse_indirect"):
+            pairs = [(v, w) for r in runs if (v := mse(r, comp)) and (w := mse(grid[r["seed"]], comp))]
             ratios.append(_ci(seed_paired_ratio(pairs), ".2f"))
-        usable = sorted((r.get("eval") or {}).get("n_probes_usable", r["n_probes"]) for r in runs)
+        usable = sorted(_usable(r) for r in runs)
         md.append(
             f"| {_method(lab, runs, twins)} | {len(runs)} | {ratios[0]} | {ratios[1]} "
             f"| {', '.join(map(str, usable))} |"
@@ -330,14 +341,15 @@ def _equal_time_table(rs, labels, scene, g_time: float, g_count: int, g_mse: flo
         "",
         "Run time without JIT compilation (`place_bake_run_s`): the compilation a sweep's first run "
         "pays is shared by the runs after it and would otherwise decide this table. A cell is a method's "
-        f"runs at one probe count; its time is their median, its {words(PRIMARY)} their geometric mean "
+        f"runs at one probe count; its time is their median, its {figure_words('mse')} their geometric mean "
         f"[95 % t-interval], as the grid's at {g_count} probes that ÷ grid divides by — so a lucky seed "
         "does not decide the ranking, and the grid's row is its own cell (÷ grid 1.00).",
         "",
         *_unsplit_note(rs),
     ]
     md += [
-        f"| method | best {words(PRIMARY)} within the time [95 %] | probes | ÷ grid | runs | median run s |",
+        f"| method | best {figure_words('mse')} within the time [95 %] | probes | ÷ grid | runs "
+        "| median run s |",
         "|---|---:|---:|---:|---:|---:|",
     ]
     by_label = count_cells(rs)
@@ -364,7 +376,7 @@ def _equal_time_table(rs, labels, scene, g_time: float, g_count: int, g_mse: flo
 def _equal_quality_table(rs, labels, scene, g_mse: float, twins: dict) -> list[str]:
     """Each method's fewest probes whose cell (geometric-mean MSE over its runs at that count) reaches the
     grid's cell, with that cell's median run time."""
-    md = ["", f"## {scene}: equal quality ({words(PRIMARY)} ≤ {g_mse:.3g}, the grid's)", ""]
+    md = ["", f"## {scene}: equal quality ({figure_words('mse')} ≤ {g_mse:.3g}, the grid's)", ""]
     md += [
         "A method's runs at one probe count reach it when their geometric mean does (not its luckiest seed).",
         "",
@@ -454,7 +466,7 @@ def _stability(runs: list[dict], labels: list[str]) -> list[str]:
     md = ["## Stability (spread over seeds and scene offsets)", "", STABILITY_TEXT, ""]
     md += [
         "| scene | method | runs | failure rate | probes mean ± sd | coverage min "
-        f"| unresolved rays mean (min – max) | {words(PRIMARY)} [95 % t-interval] | failures |",
+        f"| unresolved rays mean (min – max) | {figure_words('mse')} [95 % t-interval] | failures |",
         "|---|---|---:|---:|---:|---:|---:|---:|---|",
     ]
     for (scene, lab), rs in sorted(g.items(), key=lambda kv: (kv[0][0], labels.index(kv[0][1]))):

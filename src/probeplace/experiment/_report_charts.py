@@ -19,15 +19,16 @@ import numpy as np
 
 from .._core import load_pyplot
 from ._report_data import (
-    MSE_KEYS,
+    COMPONENTS,
     POSES,
-    PRIMARY,
     black_mse,
     cells,
+    figure_words,
     group,
     memory,
     mse,
     n_unsplit,
+    noise_floor,
     pareto_front,
     pose,
     run_s,
@@ -116,29 +117,27 @@ def _seed_note(runs: list[dict]) -> str:
     return f"{span} runs per point (seeds / offsets): geometric mean, bars = 95 % t-interval"
 
 
-def _mse_count_panel(ax, rs: list[dict], labels, col, key: str, scene: str) -> None:
-    """One panel: ``key`` against the probe count, one error-bar series per method."""
-    series = cells(rs, lambda r: r["n_probes"], lambda r: mse(r, key))
+def _mse_count_panel(ax, rs: list[dict], labels, col, comp: str, scene: str) -> None:
+    """One panel: ``comp``'s MSE against the probe count, one error-bar series per method."""
+    series = cells(rs, lambda r: r["n_probes"], lambda r: mse(r, comp))
     _dodged_series(ax, series, labels, col)
-    floor = [v for r in rs if (v := mse(r, key.replace("mse_", "noise_floor_"))) is not None]
+    floor = [v for r in rs if (v := noise_floor(r, comp)) is not None]
     if floor:
-        ax.axhline(
-            float(np.median(floor)), ls="--", c="k", lw=0.8, label=words(key.replace("mse_", "noise_floor_"))
-        )
-    black = [v for r in rs if (v := black_mse(r, key)) is not None]
+        ax.axhline(float(np.median(floor)), ls="--", c="k", lw=0.8, label=figure_words("noise_floor", comp))
+    black = [v for r in rs if (v := black_mse(r, comp)) is not None]
     if black:
-        ax.axhline(float(np.median(black)), ls=":", c="r", lw=1.0, label=words(f"mse_black_{key[4:]}"))
+        ax.axhline(float(np.median(black)), ls=":", c="r", lw=1.0, label=figure_words("mse_black", comp))
     _log_axis(ax, [c[0] for cell in series.values() for c in cell])
     ax.set_yscale("log")
     ax.set_xlabel(f"{words('n_probes')} (log scale; methods at one count side by side)")
-    ax.set_ylabel(words(key))
-    ax.set_title(f"{scene}: {words(key)}", fontsize=10)
+    ax.set_ylabel(figure_words("mse", comp))
+    ax.set_title(f"{scene}: {figure_words('mse', comp)}", fontsize=10)
     ax.legend(**LEGEND)
 
 
 def fig_mse_vs_count(runs: list[dict], labels: list[str], col: dict):
     """MSE per component (columns) and scene (rows) against the probe count, log-log, seeds as bars."""
-    have = [k for k in MSE_KEYS if any(mse(r, k) is not None for r in runs)]
+    have = [c for c in COMPONENTS if any(mse(r, c) is not None for r in runs)]
     if not have:
         return None
     plt = load_pyplot()
@@ -152,8 +151,8 @@ def fig_mse_vs_count(runs: list[dict], labels: list[str], col: dict):
     )
     for row, scene in zip(axes, scenes, strict=True):
         rs = [r for r in runs if r["scene"] == scene]
-        for ax, key in zip(row, have, strict=True):
-            _mse_count_panel(ax, rs, labels, col, key, scene)
+        for ax, comp in zip(row, have, strict=True):
+            _mse_count_panel(ax, rs, labels, col, comp, scene)
     fig.suptitle(f"Error against the path-traced reference by probe count — {_seed_note(runs)}", fontsize=10)
     return fig
 
@@ -192,9 +191,9 @@ def fig_mse_vs_time(runs: list[dict], labels: list[str], col: dict):
         ax.step(fx_, fy_, where="post", c="k", lw=1.0, zorder=2, label="Pareto front")
         ax.scatter(fx_, fy_, facecolors="none", edgecolors="k", s=110, zorder=4)
         ax.set_xlabel(name)
-        ax.set_ylabel(words(PRIMARY))
+        ax.set_ylabel(figure_words("mse"))
         ax.set_yscale("log")
-        ax.set_title(f"{words(PRIMARY)} against {name.split(',')[0].split(' (')[0]}", fontsize=10)
+        ax.set_title(f"{figure_words('mse')} against {name.split(',')[0].split(' (')[0]}", fontsize=10)
         ax.legend(**LEGEND)
     fig.suptitle("Error against time, one point per run (JIT compilation excluded)", fontsize=10)
     return fig
@@ -212,8 +211,8 @@ def fig_memory(runs: list[dict], labels: list[str], col: dict):
     _log_axis(ax, [c[0] for cell in series.values() for c in cell])
     ax.set_yscale("log")
     ax.set_xlabel(f"{words('memory_bytes')} (log scale)")
-    ax.set_ylabel(words(PRIMARY))
-    ax.set_title(f"{words(PRIMARY)} against probe memory", fontsize=10)
+    ax.set_ylabel(figure_words("mse"))
+    ax.set_title(f"{figure_words('mse')} against probe memory", fontsize=10)
     ax.legend(**LEGEND)
     fig.suptitle(f"Error against bytes of probe data\n{_seed_note(rs)}", fontsize=9)
     return fig

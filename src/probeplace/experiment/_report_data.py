@@ -1,6 +1,10 @@
 """What the report reads from a run record, its statistics over seeds and the words for its metric keys.
 
-A run record is a finished run's ``metrics.json`` plus ``dir`` (``_report.load_runs``). Each statistic is
+A run record is a finished run's ``metrics.json`` plus ``dir`` and ``evaluation`` (``_report.load_runs``):
+its ``eval`` group read by ``evaluate.EvalMetrics.from_json`` (:func:`evaluation`), so the evaluation's
+figures are read as typed fields (:func:`mse`, :func:`noise_floor`, :func:`black_mse`, ...), a figure an
+older run lacks as None; the runner's own figures (``n_probes``, ``coverage``, ``timings``, ``memory``,
+``bake_samples``) are read from the record. Each statistic is
 written once here and used by both the charts (``_report_charts``) and the tables (``_report``):
 
 * :func:`t_interval`: the mean and its Student-t confidence interval (95 %, n − 1 degrees of freedom,
@@ -25,20 +29,34 @@ from collections.abc import Callable
 
 import numpy as np
 
-PRIMARY = "mse_glossy_indirect"
-MSE_KEYS = ("mse_glossy_indirect", "mse_diffuse_indirect", "mse_full")
+from ..evaluate import EVAL_COMPONENTS, METRIC_KEYS, EvalMetrics, metric_key
+
+#: The image component whose MSE the report ranks by (its tables, time and memory charts).
+PRIMARY = "glossy_indirect"
+#: The components in the report's order: the primary first.
+COMPONENTS = (PRIMARY, *(c for c in EVAL_COMPONENTS if c != PRIMARY))
 LEVEL = 0.95
+
+#: Component → its words; family → the words of its figure of a component, ``{}`` standing for those.
+COMPONENT_WORDS = {
+    "glossy_indirect": "glossy indirect",
+    "diffuse_indirect": "diffuse indirect",
+    "full": "full image",
+}
+FAMILY_WORDS = {
+    "mse": "{} MSE",
+    "noise_floor": "reference noise floor ({})",
+    "mse_black": "black image (no indirect light)",
+}
 
 #: Metric key → the words a reader sees (axis labels, titles, table headers).
 METRIC_WORDS = {
-    "mse_glossy_indirect": "glossy indirect MSE",
-    "mse_diffuse_indirect": "diffuse indirect MSE",
-    "mse_full": "full image MSE",
-    "noise_floor_glossy_indirect": "reference noise floor (glossy indirect)",
-    "noise_floor_diffuse_indirect": "reference noise floor (diffuse indirect)",
-    "noise_floor_full": "reference noise floor (full image)",
-    "mse_black_glossy_indirect": "black image (no indirect light)",
-    "mse_black_diffuse_indirect": "black image (no indirect light)",
+    **{
+        key: text.format(COMPONENT_WORDS[c])
+        for fam, text in FAMILY_WORDS.items()
+        for c in EVAL_COMPONENTS
+        if (key := metric_key(fam, c)) in METRIC_KEYS
+    },
     "n_probes": "probes",
     "memory_bytes": "probe memory (KiB)",
     "place_bake_run_s": "placement + bake run time, JIT compilation excluded (s)",
@@ -53,6 +71,11 @@ METRIC_WORDS = {
 def words(key: str) -> str:
     """The words for a metric key (:data:`METRIC_WORDS`); an unlisted key is spelled with spaces."""
     return METRIC_WORDS.get(key, key.replace("_", " "))
+
+
+def figure_words(family: str, component: str = PRIMARY) -> str:
+    """The words for ``family``'s figure of ``component`` (``figure_words("mse")``: the primary MSE)."""
+    return words(metric_key(family, component))
 
 
 def t_interval(values, level: float = LEVEL) -> tuple[float, float, float]:
@@ -110,18 +133,34 @@ def _num(v) -> float | None:
     return float(v) if isinstance(v, int | float) and not isinstance(v, bool) and math.isfinite(v) else None
 
 
-def mse(r: dict, key: str = PRIMARY) -> float | None:
-    """The run's ``eval[key]`` (None when missing or not finite)."""
-    return _num((r.get("eval") or {}).get(key))
+def evaluation(r: dict) -> EvalMetrics | None:
+    """The run's evaluation (``metrics.json``'s ``eval``, ``EvalMetrics.from_json``; ``load_runs`` reads
+    it once into ``r["evaluation"]``); None for a run without one."""
+    if "evaluation" in r:
+        return r["evaluation"]
+    return EvalMetrics.from_json(r["eval"]) if r.get("eval") else None
 
 
-def black_mse(r: dict, key: str = PRIMARY) -> float | None:
-    """MSE of a black image (no indirect light) for ``mse_glossy_indirect`` / ``mse_diffuse_indirect``: the
-    evaluation's ``mse_black_*``, else the mean square of the saved reference image (older runs)."""
-    comp = key.removeprefix("mse_")
-    if comp not in ("glossy_indirect", "diffuse_indirect"):
+def mse(r: dict, component: str = PRIMARY) -> float | None:
+    """The MSE of the run's ``component`` image (None when missing or not finite)."""
+    ev = evaluation(r)
+    return None if ev is None else _num(ev.component(component).mse)
+
+
+def noise_floor(r: dict, component: str = PRIMARY) -> float | None:
+    """The reference's noise floor of the run's ``component`` (None when missing or not finite)."""
+    ev = evaluation(r)
+    return None if ev is None else _num(ev.component(component).noise_floor)
+
+
+def black_mse(r: dict, component: str = PRIMARY) -> float | None:
+    """MSE of a black image (no indirect light) for an indirect component: the evaluation's
+    ``mse_black``, else the mean square of the saved reference image (older runs); None for a component
+    without one (the full image)."""
+    if metric_key("mse_black", component) not in METRIC_KEYS:
         return None
-    v = mse(r, f"mse_black_{comp}")
+    ev = evaluation(r)
+    v = None if ev is None else _num(ev.component(component).mse_black)
     if v is not None:
         return v
     exr = r["dir"] / "eval" / "images.exr"
@@ -129,7 +168,7 @@ def black_mse(r: dict, key: str = PRIMARY) -> float | None:
         return None
     from ..render import load_exr
 
-    ref = load_exr(exr).get(f"ref_{comp}")
+    ref = load_exr(exr).get(f"ref_{component}")
     return None if ref is None else float(np.mean(np.asarray(ref, np.float64) ** 2))
 
 
@@ -161,7 +200,8 @@ def n_unsplit(runs: list[dict]) -> int:
 
 def shade_s(r: dict) -> float | None:
     """Probe shading seconds per frame, compilation excluded."""
-    return _num((r.get("eval") or {}).get("shading_s_per_frame"))
+    ev = evaluation(r)
+    return None if ev is None else _num(ev.shading_s_per_frame)
 
 
 def memory(r: dict) -> float | None:
@@ -170,10 +210,14 @@ def memory(r: dict) -> float | None:
 
 
 def leak_share(r: dict) -> float | None:
-    """Share of the judged pixels flagged as light leak (``eval.light_leak_pixels`` ÷
-    ``eval.light_leak_judged_pixels``; None for runs evaluated before the noise-relative definition)."""
-    e = r.get("eval") or {}
-    n, judged = _num(e.get("light_leak_pixels")), _num(e.get("light_leak_judged_pixels"))
+    """Share of the judged pixels flagged as light leak (``light_leak_pixels`` ÷
+    ``light_leak_judged_pixels`` of the diffuse indirect; None for runs evaluated before the
+    noise-relative definition)."""
+    ev = evaluation(r)
+    if ev is None:
+        return None
+    d = ev.diffuse_indirect
+    n, judged = _num(d.light_leak_pixels), _num(d.light_leak_judged_pixels)
     return None if n is None or not judged else n / judged
 
 
@@ -186,10 +230,10 @@ def run_failures(r: dict) -> list[str]:
 
 
 def unresolved(r: dict) -> float | None:
-    """Share of the evaluation's light-field rays the tracer could not resolve (``_run.unresolved_share``)."""
-    from ._run import unresolved_share
-
-    return unresolved_share(r.get("eval") or {})
+    """Share of the evaluation's light-field rays the tracer could not resolve (the glossy indirect's
+    ``unresolved_share``)."""
+    ev = evaluation(r)
+    return None if ev is None else _num(ev.glossy_indirect.unresolved_share)
 
 
 def full_coverage(r: dict) -> bool | None:

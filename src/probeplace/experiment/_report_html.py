@@ -29,14 +29,15 @@ from pathlib import Path
 
 import numpy as np
 
-from ._report_data import comparator, grid_count, mse, pose, words
+from ..evaluate import RunSettings
+from ._report_data import COMPONENTS, PRIMARY, comparator, evaluation, figure_words, grid_count, mse, pose
 
 #: Narrowest an image is shown (CSS px): a 64 × 64 evaluation is too small to judge at its own size.
 MIN_CSS_PX = 256
 #: Widest an image is shown (CSS px), so that four fit side by side on a laptop screen.
 MAX_CSS_PX = 420
 #: (component, its block open by default): the primary metric's block is open, the others folded.
-COMPONENTS = (("glossy_indirect", True), ("diffuse_indirect", False), ("full", False))
+BLOCKS = tuple((c, c == PRIMARY) for c in COMPONENTS)
 #: The reference's 99th percentile is shown at this tone-mapped level: bright, without clipping most pixels.
 TARGET_LEVEL = 0.8
 #: Probe marker radius as a share of the scene's bounding-box diagonal: it sets how the marker shrinks with
@@ -104,18 +105,20 @@ def _display_px(width: int) -> int:
 
 
 def _sample_line(r: dict, shape: tuple) -> str:
-    """The run's image size and sample counts (``metrics.json``: ``eval`` and ``bake_samples``)."""
-    e, b = r.get("eval") or {}, r.get("bake_samples") or {}
+    """The run's image size and sample counts (its evaluation's settings and ``samples``, the runner's
+    ``bake_samples``)."""
+    ev, b = evaluation(r), r.get("bake_samples") or {}
+    s = RunSettings() if ev is None else ev.settings
+    chosen = None if ev is None or ev.samples is None else ev.samples.reference_chosen_by
 
     def n(v, unit):
         return "—" if v is None else f"{v} {unit}"
 
-    chosen = (e.get("samples") or {}).get("reference_chosen_by")
     return (
-        f"{shape[1]} × {shape[0]} px, view {e.get('view', '—')} · reference {n(e.get('spp'), 'paths/px')}"
-        f"{f' ({chosen})' if chosen else ''}, max depth {e.get('max_depth', '—')}"
-        f" · glossy reference (common random numbers) {n(e.get('glossy_ref_spp'), 'paths')}"
-        f" · probe shading {n(e.get('glossy_spp'), 'glossy samples/px')}"
+        f"{shape[1]} × {shape[0]} px, view {s.view or '—'} · reference {n(s.spp, 'paths/px')}"
+        f"{f' ({chosen})' if chosen else ''}, max depth {'—' if s.max_depth is None else s.max_depth}"
+        f" · glossy reference (common random numbers) {n(s.glossy_ref_spp, 'paths')}"
+        f" · probe shading {n(s.glossy_spp, 'glossy samples/px')}"
         f" · bake {n(b.get('spp'), 'paths per texel ray')}"
     )
 
@@ -162,10 +165,10 @@ def _component_block(reps: list[dict], layers: dict, comp: str, opened: bool) ->
                 png = ev / (f"{name}_false.png" if kind == "error" else f"{name}.png")
                 img = png.read_bytes() if png.is_file() else None
             cells.append(_image_cell(img, width, aspect, titles[kind], "" if name in lay else " (saved PNG)"))
-        mse_c = mse(r, f"mse_{comp}")
+        mse_c = mse(r, comp)
         head = (
             f"<b>{html.escape(r['label'])}</b> · {r['n_probes']} probes · seed {r['seed']} · "
-            f"{html.escape(words('mse_' + comp))} {'—' if mse_c is None else f'{mse_c:.3g}'}"
+            f"{html.escape(figure_words('mse', comp))} {'—' if mse_c is None else f'{mse_c:.3g}'}"
         )
         size = _sample_line(r, shape) if shape else "no images.exr"
         rows.append(
@@ -244,7 +247,7 @@ def _view_payload(scene, reps: list[dict], col: dict) -> dict:
         "colour_index": _b64_gzip(index.reshape(-1).astype("<u1" if len(palette) <= 256 else "<u2")),
         "index_bytes": 1 if len(palette) <= 256 else 2,
         "palette": palette.tolist(),
-        "camera": _camera(scene, (reps[0].get("eval") or {}).get("view")),
+        "camera": _camera(scene, None if (ev := evaluation(reps[0])) is None else ev.settings.view),
         "radius": PROBE_RADIUS * float(np.linalg.norm(hi - lo)),
         "sets": sets,
     }
@@ -265,7 +268,7 @@ def _scene_section(scene_name: str, reps: list[dict], scene, col: dict, i: int) 
             f'<script type="application/json" class="view-data">{data}</script></section>'
         )
     layers = {r["run"]: _layers(r) for r in reps}
-    blocks = "".join(_component_block(reps, layers, c, opened) for c, opened in COMPONENTS)
+    blocks = "".join(_component_block(reps, layers, c, opened) for c, opened in BLOCKS)
     images = f'<section class="images"><h3>{esc}</h3>{blocks}</section>'
     return view, images
 

@@ -656,12 +656,6 @@ def _flat(d: dict, prefix: str = "") -> dict:
     return out
 
 
-def unresolved_share(ev: dict) -> float | None:
-    """The share of light-field rays the tracer could not resolve (``evaluate``'s ``unresolved_share``)."""
-    v = ev.get("unresolved_share")
-    return float(v) if isinstance(v, int | float) and not isinstance(v, bool) else None
-
-
 def failures(m: dict) -> list[str]:
     """Failure cases of the stability study: coverage < 100% (``placement.reaches_target``, the
     tolerance of ``target_reached``), probes inside geometry (negative SDF or the bake's inside test),
