@@ -58,6 +58,7 @@ _LAZY = {
         ),
         "_octahedral",
     ),
+    **dict.fromkeys(("take_queued", "write_finished"), "_lanes"),
     **dict.fromkeys(("MAX_BYTES_ENV", "check_memory", "memory_limit_bytes"), "_memory"),
     **dict.fromkeys(("pack_normal", "unpack_normal"), "_packed"),
     "load_pyplot": "_plotting",
@@ -103,6 +104,8 @@ if TYPE_CHECKING:  # what static checkers and IDEs see; __getattr__ gives the sa
     from ._io import write_exr as write_exr
     from ._io import write_json_atomic as write_json_atomic
     from ._io import write_text_atomic as write_text_atomic
+    from ._lanes import take_queued as take_queued
+    from ._lanes import write_finished as write_finished
     from ._math import dot3 as dot3
     from ._math import luminance as luminance
     from ._math import next_pow2 as next_pow2

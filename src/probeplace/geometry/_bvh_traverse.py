@@ -30,6 +30,8 @@ import jax
 import jax.numpy as jnp
 from jaxtyping import Array, Float, Int
 
+from .._core import take_queued, write_finished
+
 # Slab-test exit distances are scaled up by 1 + 2·γ(3) (Ize 2013, "Robust BVH ray traversal", JCGT 2(2),
 # Eq. 5) so that float32 rounding never culls a box the exact ray enters (γ(n) = n·ε / (1 − n·ε)).
 _F32_EPS = float(jnp.finfo(jnp.float32).eps) / 2
@@ -152,21 +154,20 @@ def _tri_step(triangles, st, o, d, *, sentinel, no_tri, any_hit):
 
 
 def _refill(carry, *, start, ray_rows, n, sentinel, no_tri):
-    """Write finished lanes' hits to the output and hand each free lane the next queued ray (wavefront)."""
+    """Write finished lanes' hits to the output and hand each free lane the next queued ray (wavefront;
+    ``_core._lanes``)."""
     ray, st, nxt, out = carry
     idx, tb, tr, bu, bv, pend = st
     finished = (ray >= 0) & (idx == sentinel) & (pend == no_tri)
-    sink = jnp.where(finished, ray, n)  # row n is dropped
-    out = tuple(a.at[sink].set(b, mode="drop") for a, b in zip(out, (tb, tr, bu, bv), strict=True))
+    out = write_finished(out, finished, ray, (tb, tr, bu, bv), n)
     free = finished | (ray < 0)
-    new = nxt + jnp.cumsum(free, dtype=jnp.int32) - 1
-    take = free & (new < n)
-    ray = jnp.where(free, jnp.where(take, new, -1), ray)
+    queued, take, nxt = take_queued(free, nxt, n)
+    ray = jnp.where(free, queued, ray)
     safe = jnp.clip(ray, 0, n - 1)
     idx = jnp.where(free, jnp.where(take, start[safe], sentinel), idx)
     tb = jnp.where(free, ray_rows[safe, 9], tb)
     tr = jnp.where(free, -1, tr)
-    return ray, (idx, tb, tr, bu, bv, pend), nxt + jnp.sum(free, dtype=jnp.int32), out
+    return ray, (idx, tb, tr, bu, bv, pend), nxt, out
 
 
 def traverse(

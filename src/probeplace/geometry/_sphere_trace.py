@@ -41,6 +41,7 @@ import jax
 import jax.numpy as jnp
 from jaxtyping import Array, Bool, Float
 
+from .._core import take_queued, write_finished
 from ._sdf import SDFGrid, decode_trace
 
 DEFAULT_MAX_STEPS = 256
@@ -305,18 +306,16 @@ def trace_sdf_rays(
     def refill(carry):
         ray, st, nxt, out_t, out_hit = carry
         finished = (ray >= 0) & (st.done | (st.steps >= max_steps))
-        sink = jnp.where(finished, ray, n)  # index n is dropped
-        out_t = out_t.at[sink].set(jnp.where(st.hit, st.t, jnp.inf), mode="drop")
-        out_hit = out_hit.at[sink].set(st.hit, mode="drop")
+        hit_t = jnp.where(st.hit, st.t, jnp.inf)
+        out_t, out_hit = write_finished((out_t, out_hit), finished, ray, (hit_t, st.hit), n)
         free = finished | (ray < 0)
-        new_ray = nxt + jnp.cumsum(free, dtype=jnp.int32) - 1
-        take = free & (new_ray < n)
-        ray = jnp.where(free, jnp.where(take, new_ray, -1), ray)
+        queued, take, nxt = take_queued(free, nxt, n)  # the shared scheduler (_core._lanes)
+        ray = jnp.where(free, queued, ray)
         safe = jnp.clip(ray, 0, n - 1)
         fresh = jax.vmap(_fresh_state)(t0_all[safe], t1_all[safe])
         fresh = eqx.tree_at(lambda s: s.done, fresh, fresh.done | ~take)
         st = jax.tree.map(lambda a, b: jnp.where(free, a, b), fresh, st)
-        return ray, st, nxt + jnp.sum(free, dtype=jnp.int32), out_t, out_hit
+        return ray, st, nxt, out_t, out_hit
 
     def cond(carry):
         ray, _, nxt, _, _ = carry

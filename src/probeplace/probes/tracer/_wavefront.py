@@ -50,6 +50,7 @@ import jax.numpy as jnp
 import numpy as np
 from jaxtyping import Array, Float, Int
 
+from ..._core import take_queued, write_finished
 from ._index import GridIndex
 from ._march import (
     _march_step,
@@ -344,8 +345,7 @@ def _flush(tr, lanes: _Lanes, out: _Out) -> tuple[_Lanes, _Out]:
     n = out.status.shape[0] - 1
     done = lanes.phase == DONE
     res = jax.vmap(_ray_result)(lanes.rs)
-    rows = jnp.where(done, lanes.ray, n)
-    out = _Out(*(a.at[rows].set(r.astype(a.dtype)) for a, r in zip(out, res, strict=True)))
+    out = _Out(*write_finished(tuple(out), done, lanes.ray, tuple(res), n))  # idle lanes: sink row n
     return lanes._replace(ray=jnp.where(done, -1, lanes.ray), phase=jnp.where(done, IDLE, lanes.phase)), out
 
 
@@ -353,11 +353,8 @@ def _refill(tr, lanes: _Lanes, queue, qptr):
     """Give idle lanes the next rays of the queue (``queue`` = (order, origins, directions, t_end))."""
     order, origins, directions, t_end = queue
     n = order.shape[0]
-    idle = lanes.phase == IDLE
-    rank = jnp.cumsum(idle, dtype=jnp.int32) - 1
-    pos = qptr + rank
-    take = idle & (pos < n)
-    ray = jnp.take(order, jnp.minimum(pos, n - 1))
+    pos, take, qptr = take_queued(lanes.phase == IDLE, qptr, n)  # the shared scheduler (_core._lanes)
+    ray = jnp.take(order, jnp.maximum(pos, 0))
     rs0 = jax.vmap(lambda _: _ray_state(tr, origins.dtype))(ray)
     new = dict(
         ray=ray,
@@ -368,7 +365,7 @@ def _refill(tr, lanes: _Lanes, queue, qptr):
         rs=rs0,
     )
     lanes = lanes._replace(**_where(take, new, {k: getattr(lanes, k) for k in new}))
-    return lanes, qptr + jnp.sum(take, dtype=jnp.int32)
+    return lanes, qptr
 
 
 def _empty_lanes(tr: LightFieldTracer, b: int, dtype) -> _Lanes:
