@@ -10,7 +10,7 @@ import time
 from collections.abc import Callable
 from pathlib import Path
 
-from probeplace._core._jax_cache import enable_compilation_cache
+from probeplace._core.runtime import enable_compilation_cache
 
 # JAX's compilation cache (issue 32), like the command's: set up before JAX is imported. Benchmarks time
 # compilation apart from run time: a warm cache makes their compile figures cache-load times

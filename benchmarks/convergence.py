@@ -555,6 +555,13 @@ def parse_args(argv=None) -> argparse.Namespace:
         "÷ black fell from 0.052 at 4 to 0.015, for ~10 s more a cell)",
     )
     ap.add_argument("--glossy-ref-spp", type=int, default=4)
+    ap.add_argument(
+        "--eval-size",
+        nargs="+",
+        default=None,
+        help="evaluation image size, e.g. sponza:128x96 (default: Cornell 32x32, Sponza 64x48; "
+        "quick smaller)",
+    )
     ap.add_argument("--timing-repeats", type=int, default=1)
     ap.add_argument("--seeds", type=int, default=3, help="bake + evaluation seeds of the 128-probe grid")
     ap.add_argument("--grid128-res", type=int, default=None, help="its map resolution (default 64; quick 16)")
@@ -630,6 +637,10 @@ def main(argv=None) -> dict:
         plan = dict((QUICK if q else FULL)[key])
         plan["grids"] = scene_values(args.grids, key, str) or plan["grids"]
         plan["res"] = scene_values(args.res, key, int) or plan["res"]
+        size = scene_values(args.eval_size, key, str)
+        if size:  # e.g. sponza:128x96: the evaluation image's pixels (the seed spread's sample, issue 33)
+            w, _, h = size[0].partition("x")
+            plan["eval"] = (int(w), int(h))
         run_scene(key, args, plan, result)
     if "sponza" in args.scenes and not args.no_costs:
         instrument_costs(args, result)

@@ -46,7 +46,7 @@ from hydra.core.config_store import ConfigStore
 from omegaconf import DictConfig, OmegaConf
 
 from probeplace._core import ProbeplaceError
-from probeplace._core._jax_cache import enable_compilation_cache
+from probeplace._core.runtime import enable_compilation_cache
 from probeplace.experiment import ExperimentConfig, run
 
 enable_compilation_cache()  # JAX's compilation cache (issue 32: $PROBEPLACE_JAX_CACHE), before any compile
@@ -148,7 +148,7 @@ def _precheck(argv: list[str]) -> None:
     from hydra.errors import HydraException
     from omegaconf.errors import OmegaConfBaseException
 
-    from probeplace._core._checks import check_writable_folder
+    from probeplace._core.runtime import check_writable_folder
     from probeplace.experiment import check_scenes, to_config
     from probeplace.experiment._run import check_finished
 
@@ -195,7 +195,7 @@ def _scene_hint(message: str) -> str:
 
 
 if __name__ == "__main__":
-    from probeplace._core._interrupt import interruptible
+    from probeplace._core.runtime import interruptible
 
     try:
         with interruptible():

@@ -12,13 +12,14 @@ jax.config.update("jax_enable_x64", True)
 jax.config.update("jax_numpy_dtype_promotion", "strict")
 jax.config.update("jax_numpy_rank_promotion", "raise")
 
-# JAX's persistent compilation cache (issue 32; probeplace._core._jax_cache): the suite keeps every compiled
-# program in .cache/jax/<jax version tag> of this checkout (gitignored; one machine's, never shared), so a
-# second `make test` loads what the first compiled. $PROBEPLACE_JAX_CACHE (a folder, or `off`) overrides it;
-# child processes (the CLI and runner tests) inherit the setting. Tests that measure compile time use the
-# ``no_persistent_cache`` fixture. XLA_FLAGS (make test-isa's --xla_cpu_max_isa) is part of JAX's cache key.
-from probeplace._core._jax_cache import ENV as _JAX_CACHE_ENV  # noqa: E402
-from probeplace._core._jax_cache import enable_compilation_cache  # noqa: E402
+# JAX's persistent compilation cache (issue 32; probeplace._core.runtime._jax_cache): the suite keeps every
+# compiled program in .cache/jax/<jax version tag> of this checkout (gitignored; one machine's, never
+# shared), so a second `make test` loads what the first compiled. $PROBEPLACE_JAX_CACHE (a folder, or `off`)
+# overrides it; child processes (the CLI and runner tests) inherit the setting. Tests that measure compile
+# time use the ``no_persistent_cache`` fixture. XLA_FLAGS (make test-isa's --xla_cpu_max_isa) is part of
+# JAX's cache key.
+from probeplace._core.runtime._jax_cache import ENV as _JAX_CACHE_ENV  # noqa: E402
+from probeplace._core.runtime._jax_cache import enable_compilation_cache  # noqa: E402
 
 TEST_JAX_CACHE = Path(__file__).resolve().parents[1] / ".cache" / "jax"
 enable_compilation_cache(os.environ.get(_JAX_CACHE_ENV) or str(TEST_JAX_CACHE))
@@ -33,7 +34,7 @@ def pytest_configure(config):
 @pytest.fixture
 def no_persistent_cache():
     """No persistent compilation cache inside the test: compile time measured is real compile time."""
-    from probeplace._core._jax_cache import persistent_cache_disabled
+    from probeplace._core.runtime._jax_cache import persistent_cache_disabled
 
     with persistent_cache_disabled():
         yield

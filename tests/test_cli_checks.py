@@ -252,7 +252,7 @@ def test_outputs_get_the_usual_file_mode(tmp_path, capsys):
 
 INTERRUPT_IN_GC_CALLBACK = """
 import gc, signal, sys, time
-from probeplace._core._interrupt import interruptible
+from probeplace._core.runtime._interrupt import interruptible
 
 fired = []
 

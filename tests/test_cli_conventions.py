@@ -10,7 +10,7 @@ from pathlib import Path
 
 import pytest
 
-from probeplace._core import _progress
+from probeplace._core.runtime import _progress
 from probeplace.cli import build_parser, main
 
 SRC = Path(__file__).resolve().parents[1] / "src" / "probeplace"
@@ -119,7 +119,7 @@ def test_progress_bars_are_plain_when_stderr_is_not_a_terminal(capsys, monkeypat
 
 
 def test_progress_bars_are_built_through_the_one_helper():
-    """No module but ``_core/_progress.py`` constructs a tqdm bar itself."""
+    """No module but ``_core/runtime/_progress.py`` constructs a tqdm bar itself."""
     bad = []
     for path in SRC.rglob("*.py"):
         if path.name == "_progress.py":

@@ -182,10 +182,10 @@ def _fake_place(*a, **k):
 
 
 def test_disk_full_while_writing_names_the_file_and_leaves_nothing(tmp_path, capsys, monkeypatch):
-    import probeplace._core._io
+    import probeplace._core.files._io
     import probeplace.placement
 
-    monkeypatch.setattr(probeplace._core._io, "open", _FullDisk, raising=False)
+    monkeypatch.setattr(probeplace._core.files._io, "open", _FullDisk, raising=False)
     ok = probe_json(tmp_path / "in.json")
     out = tmp_path / "o.json"
     refused(

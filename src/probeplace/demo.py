@@ -19,7 +19,7 @@ import jax.numpy as jnp
 import numpy as np
 
 from ._core import Scene, load_pyplot
-from ._core._progress import progress_bar
+from ._core.runtime import progress_bar
 
 DEMO_WIDTH = 128
 DEMO_HEIGHT = 128

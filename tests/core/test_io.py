@@ -1,4 +1,4 @@
-"""Atomic writes and EXR files (``probeplace._core._io``): the old file survives a failed write, no
+"""Atomic writes and EXR files (``probeplace._core.files._io``): the old file survives a failed write, no
 temporary file is left behind, new files get the umask's permissions, EXR channels round-trip."""
 
 from __future__ import annotations

@@ -1,6 +1,6 @@
-"""JAX's persistent compilation cache (issue 32, ``probeplace._core._jax_cache``): where it lives, what it
-refuses, that setting it up imports no JAX, ``probeplace cache info|clear``, and that a cached program gives
-the very same results as a freshly compiled one."""
+"""JAX's persistent compilation cache (issue 32, ``probeplace._core.runtime._jax_cache``): where it lives,
+what it refuses, that setting it up imports no JAX, ``probeplace cache info|clear``, and that a cached
+program gives the very same results as a freshly compiled one."""
 
 from __future__ import annotations
 
@@ -12,8 +12,8 @@ from pathlib import Path
 
 import pytest
 
-from probeplace._core import _jax_cache
-from probeplace._core._jax_cache import ENV, cache_tag, enable_compilation_cache, resolve
+from probeplace._core.runtime import _jax_cache
+from probeplace._core.runtime._jax_cache import ENV, cache_tag, enable_compilation_cache, resolve
 
 ROOT = Path(__file__).resolve().parents[2]
 
@@ -77,7 +77,7 @@ def test_setup_imports_no_jax(tmp_path):
     """Enabling the cache sets the variables JAX reads at import, and imports no JAX itself."""
     code = (
         "import json, os, sys\n"
-        "from probeplace._core._jax_cache import enable_compilation_cache\n"
+        "from probeplace._core.runtime import enable_compilation_cache\n"
         "s = enable_compilation_cache()\n"
         "env = {k: v for k, v in os.environ.items() if 'CACHE' in k}\n"
         "print(json.dumps({'jax': 'jax' in sys.modules, 'env': env, 'folder': str(s.folder)}))\n"
@@ -175,7 +175,7 @@ print(json.dumps({"digest": h.hexdigest(), "n_probes": int(res.n_probes),
 
 def _pipeline(cache: str, method: str, radiance: str) -> dict:
     env = {**os.environ, ENV: cache, "JAX_PLATFORMS": "cpu"}
-    code = "from probeplace._core._jax_cache import enable_compilation_cache\nenable_compilation_cache()\n"
+    code = "from probeplace._core.runtime import enable_compilation_cache\nenable_compilation_cache()\n"
     cmd = [sys.executable, "-c", code + PIPELINE, method, radiance]
     r = subprocess.run(cmd, env=env, cwd=ROOT, capture_output=True, text=True, timeout=600)
     assert r.returncode == 0, r.stderr[-3000:]

@@ -1,4 +1,4 @@
-"""The shared wavefront lane scheduler (``_core._lanes``) against a slow loop that hands out a queue by
+"""The shared wavefront lane scheduler (``_core.maths._lanes``) against a slow loop that hands out a queue by
 hand: free lanes take the next rays in lane order, a finished lane's result lands in its ray's row."""
 
 from __future__ import annotations

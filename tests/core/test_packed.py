@@ -1,4 +1,4 @@
-"""The probes' packed normal maps (``_core._packed``) against a float64 oracle."""
+"""The probes' packed normal maps (``_core.maths._packed``) against a float64 oracle."""
 
 from __future__ import annotations
 

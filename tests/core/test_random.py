@@ -1,4 +1,4 @@
-"""Named random streams: one key per consumer, derived from the run's seed (``_core._random``)."""
+"""Named random streams: one key per consumer, derived from the run's seed (``_core.maths._random``)."""
 
 from __future__ import annotations
 

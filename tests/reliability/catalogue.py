@@ -1216,7 +1216,7 @@ CATALOGUE: list[Entry] = [
         "runner-results-dir-under-a-file",
         "cli",
         "runner `results_dir` under a path whose parent is a file",
-        lambda c: __import__("probeplace._core._checks", fromlist=["x"]).check_writable_folder(
+        lambda c: __import__("probeplace._core.runtime._checks", fromlist=["x"]).check_writable_folder(
             c.write("f", "x") / "results" / "default", "results_dir"
         ),
         ConfigError,
@@ -1278,7 +1278,7 @@ def _disk_full(c):
     import shutil
     from unittest import mock
 
-    from probeplace._core._checks import check_writable_file
+    from probeplace._core.runtime._checks import check_writable_file
 
     full = shutil._ntuple_diskusage(10**9, 10**9, 0)
     with mock.patch("shutil.disk_usage", return_value=full):

@@ -1,8 +1,18 @@
-"""Core pytree types and safe math shared by every stage.
+"""Core pytree types and safe math shared by every stage, grouped by role:
 
-The error classes load eagerly (plain Python); the rest loads on first use (PEP 562 ``__getattr__``):
-most of it imports JAX, and importing ``probeplace._core._errors``, ``._sh`` or ``._io`` from the
-NumPy-only ``export`` stage must not pull JAX in through this package.
+* ``_errors``, ``_samples``, ``_types``, ``_lazy``: the error classes, sample counts from a noise target,
+  the pytree containers, and the PEP 562 lazy loading of this face and the stages';
+* ``files/``: atomic writes and EXR images, the probe files (ProbeSet JSON, baked ``.npz``, sidecars) and
+  the ProbeSet as pytrees, matplotlib for charts;
+* ``maths/``: NaN-safe math, the octahedral map, packed normals, the SH basis, the named random streams
+  and the wavefront lane scheduler;
+* ``runtime/``: checks before slow work, the memory limit and sizes, Ctrl-C, JAX's compilation cache and
+  progress bars.
+
+Each group's ``__init__`` is its face for the rest of the package; this one is the package's. The error
+classes and ``_samples`` load eagerly (plain Python); the rest loads on first use (PEP 562 ``__getattr__``),
+each name alone: most of it imports JAX, and the NumPy-only ``export`` stage (which reads ``_errors``,
+``files``' ``_io`` and ``_probe_files`` and ``maths``' ``_sh``) must not pull JAX in through this package.
 """
 
 from __future__ import annotations
@@ -23,47 +33,57 @@ from ._samples import json_number as json_number
 from ._samples import mean_and_se as mean_and_se
 from ._samples import smallest_count as smallest_count
 
-# name -> the private module defining it (all but _io, _memory and _plotting import JAX)
+# name -> the group face or private module defining it (files: _io and _probe_files are NumPy only, and
+# _plotting imports matplotlib on use; runtime: plain Python; the rest imports JAX)
 _LAZY = {
     **dict.fromkeys(
         (
+            "PROBE_SET_FORMAT",
             "atomic_path",
+            "load_probe_set",
+            "load_pyplot",
             "read_exr",
+            "save_probe_set",
             "write_atomic",
             "write_bytes_atomic",
             "write_exr",
             "write_json_atomic",
             "write_text_atomic",
         ),
-        "_io",
-    ),
-    **dict.fromkeys(
-        ("dot3", "luminance", "next_pow2", "norm3", "safe_norm", "safe_normalize", "safe_sqrt"), "_math"
+        "files",
     ),
     **dict.fromkeys(
         (
             "add_border",
             "border_index",
+            "dot3",
+            "host_rng",
             "jittered_texel_directions",
+            "luminance",
+            "next_pow2",
+            "norm3",
             "oct_decode",
             "oct_encode",
             "oct_wrap",
+            "pack_normal",
+            "safe_norm",
+            "safe_normalize",
+            "safe_sqrt",
             "sample_bilinear",
             "sample_nearest",
+            "stream",
             "strip_border",
+            "take_queued",
             "texel_directions",
             "texel_of_direction",
             "texel_solid_angles",
             "texel_uv",
+            "unpack_normal",
+            "write_finished",
         ),
-        "_octahedral",
+        "maths",
     ),
-    **dict.fromkeys(("take_queued", "write_finished"), "_lanes"),
-    **dict.fromkeys(("MAX_BYTES_ENV", "check_memory", "memory_limit_bytes"), "_memory"),
-    **dict.fromkeys(("pack_normal", "unpack_normal"), "_packed"),
-    "load_pyplot": "_plotting",
-    **dict.fromkeys(("host_rng", "stream"), "_random"),
-    **dict.fromkeys(("PROBE_SET_FORMAT", "load_probe_set", "save_probe_set"), "_probe_io"),
+    **dict.fromkeys(("MAX_BYTES_ENV", "check_memory", "memory_limit_bytes"), "runtime"),
     **dict.fromkeys(
         (
             "BAKE_SETTINGS_VERSION",
@@ -97,46 +117,6 @@ __all__ = [
 ]
 
 if TYPE_CHECKING:  # what static checkers and IDEs see; __getattr__ gives the same at run time
-    from ._io import atomic_path as atomic_path
-    from ._io import read_exr as read_exr
-    from ._io import write_atomic as write_atomic
-    from ._io import write_bytes_atomic as write_bytes_atomic
-    from ._io import write_exr as write_exr
-    from ._io import write_json_atomic as write_json_atomic
-    from ._io import write_text_atomic as write_text_atomic
-    from ._lanes import take_queued as take_queued
-    from ._lanes import write_finished as write_finished
-    from ._math import dot3 as dot3
-    from ._math import luminance as luminance
-    from ._math import next_pow2 as next_pow2
-    from ._math import norm3 as norm3
-    from ._math import safe_norm as safe_norm
-    from ._math import safe_normalize as safe_normalize
-    from ._math import safe_sqrt as safe_sqrt
-    from ._memory import MAX_BYTES_ENV as MAX_BYTES_ENV
-    from ._memory import check_memory as check_memory
-    from ._memory import memory_limit_bytes as memory_limit_bytes
-    from ._octahedral import add_border as add_border
-    from ._octahedral import border_index as border_index
-    from ._octahedral import jittered_texel_directions as jittered_texel_directions
-    from ._octahedral import oct_decode as oct_decode
-    from ._octahedral import oct_encode as oct_encode
-    from ._octahedral import oct_wrap as oct_wrap
-    from ._octahedral import sample_bilinear as sample_bilinear
-    from ._octahedral import sample_nearest as sample_nearest
-    from ._octahedral import strip_border as strip_border
-    from ._octahedral import texel_directions as texel_directions
-    from ._octahedral import texel_of_direction as texel_of_direction
-    from ._octahedral import texel_solid_angles as texel_solid_angles
-    from ._octahedral import texel_uv as texel_uv
-    from ._packed import pack_normal as pack_normal
-    from ._packed import unpack_normal as unpack_normal
-    from ._plotting import load_pyplot as load_pyplot
-    from ._probe_io import PROBE_SET_FORMAT as PROBE_SET_FORMAT
-    from ._probe_io import load_probe_set as load_probe_set
-    from ._probe_io import save_probe_set as save_probe_set
-    from ._random import host_rng as host_rng
-    from ._random import stream as stream
     from ._types import BAKE_SETTINGS_VERSION as BAKE_SETTINGS_VERSION
     from ._types import BakeSettings as BakeSettings
     from ._types import Camera as Camera
@@ -147,5 +127,45 @@ if TYPE_CHECKING:  # what static checkers and IDEs see; __getattr__ gives the sa
     from ._types import Scene as Scene
     from ._types import Sun as Sun
     from ._types import scene_box as scene_box
+    from .files import PROBE_SET_FORMAT as PROBE_SET_FORMAT
+    from .files import atomic_path as atomic_path
+    from .files import load_probe_set as load_probe_set
+    from .files import load_pyplot as load_pyplot
+    from .files import read_exr as read_exr
+    from .files import save_probe_set as save_probe_set
+    from .files import write_atomic as write_atomic
+    from .files import write_bytes_atomic as write_bytes_atomic
+    from .files import write_exr as write_exr
+    from .files import write_json_atomic as write_json_atomic
+    from .files import write_text_atomic as write_text_atomic
+    from .maths import add_border as add_border
+    from .maths import border_index as border_index
+    from .maths import dot3 as dot3
+    from .maths import host_rng as host_rng
+    from .maths import jittered_texel_directions as jittered_texel_directions
+    from .maths import luminance as luminance
+    from .maths import next_pow2 as next_pow2
+    from .maths import norm3 as norm3
+    from .maths import oct_decode as oct_decode
+    from .maths import oct_encode as oct_encode
+    from .maths import oct_wrap as oct_wrap
+    from .maths import pack_normal as pack_normal
+    from .maths import safe_norm as safe_norm
+    from .maths import safe_normalize as safe_normalize
+    from .maths import safe_sqrt as safe_sqrt
+    from .maths import sample_bilinear as sample_bilinear
+    from .maths import sample_nearest as sample_nearest
+    from .maths import stream as stream
+    from .maths import strip_border as strip_border
+    from .maths import take_queued as take_queued
+    from .maths import texel_directions as texel_directions
+    from .maths import texel_of_direction as texel_of_direction
+    from .maths import texel_solid_angles as texel_solid_angles
+    from .maths import texel_uv as texel_uv
+    from .maths import unpack_normal as unpack_normal
+    from .maths import write_finished as write_finished
+    from .runtime import MAX_BYTES_ENV as MAX_BYTES_ENV
+    from .runtime import check_memory as check_memory
+    from .runtime import memory_limit_bytes as memory_limit_bytes
 
 __getattr__, __dir__ = lazy_exports(__name__, _LAZY, globals(), __all__)

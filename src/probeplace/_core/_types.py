@@ -14,7 +14,7 @@ import numpy as np
 from jaxtyping import Array, Bool, Float, Int, UInt32
 
 from ._errors import ConfigError
-from ._packed import unpack_normal
+from .maths import unpack_normal
 
 
 def _check_last(name: str, x, tail: tuple[int, ...]) -> None:

@@ -100,7 +100,7 @@ def _show_scene(args: argparse.Namespace) -> int:
 
 
 def _cmd_demo(args: argparse.Namespace) -> int:
-    from .._core._checks import check_writable_folder
+    from .._core.runtime import check_writable_folder
     from ..demo import load_demo_config, run_demo
 
     config = load_demo_config(args.config) if args.config else None
@@ -130,7 +130,7 @@ def _export_input(args: argparse.Namespace):
     written, a ``.npz`` is a NumPy archive, the set has active probes."""
     import dataclasses
 
-    from .._core._checks import check_npz_archive, check_writable_file
+    from .._core.runtime import check_npz_archive, check_writable_file
     from ..export import read_probes
 
     check_writable_file(args.out, "--out")
@@ -176,8 +176,8 @@ def _cmd_place(args: argparse.Namespace) -> int:
     """Place probes (``placement.place``), write the top view, each probe's part in the coverage
     (``<out stem>.coverage.npz``, for ``probeplace view``) and then the probe set (last: a probe set on
     disk means the command finished)."""
-    from .._core._checks import check_writable_file
-    from .._core._io import naming_the_file
+    from .._core.files import naming_the_file
+    from .._core.runtime import check_writable_file
     from ..pipeline import write_placement
     from ..placement import FitnessConfig, place
     from ..scene import load_scene
@@ -236,7 +236,7 @@ def _checked_place_args(args: argparse.Namespace):
     ``placement.PlaceRequest`` fields of the flags and ``--height-band``'s region, checked by it."""
     from pathlib import Path
 
-    from .._core._checks import check_writable_file
+    from .._core.runtime import check_writable_file
     from ..placement import PlaceRequest, get_method, parse_bytes
 
     region = (
@@ -547,7 +547,7 @@ def _os_error_text(e: OSError, out=None) -> str:
 
 def _configure(args: argparse.Namespace) -> None:
     """Logging level and progress bars of ``-v`` / ``-q``."""
-    from .._core._progress import set_progress
+    from .._core.runtime import set_progress
 
     level = logging.INFO if args.verbose else logging.WARNING
     logging.basicConfig(level=level, format="%(levelname)s %(message)s")
@@ -561,7 +561,7 @@ def main(argv: list[str] | None = None) -> int:
     cannot be read or written) is one line ``probeplace: error: ...`` and status 2; Ctrl-C is one line
     ``probeplace: interrupted`` and status 130 (with ``argv`` None, the process's own command, the
     process ends there). Neither prints a traceback."""
-    from .._core._interrupt import interruptible
+    from .._core.runtime import interruptible
 
     args = None
     try:

@@ -1,11 +1,11 @@
 """``probeplace cache info|clear`` and the top-level ``--jax-cache DIR|off`` (issue 32): JAX's persistent
-compilation cache (``probeplace._core._jax_cache``). Imports no JAX."""
+compilation cache (``probeplace._core.runtime._jax_cache``). Imports no JAX."""
 
 from __future__ import annotations
 
 import argparse
 
-from .._core import _jax_cache
+from .._core.runtime import _jax_cache
 
 
 def add_parser(parser: argparse.ArgumentParser, sub) -> None:

@@ -349,7 +349,7 @@ def bake_config(args: argparse.Namespace):
 
 def _checked_outputs(args: argparse.Namespace, path: Path, config) -> None:
     """--save-baked and --out: the right kind of input, and writable, before any work."""
-    from .._core._checks import check_writable_file, check_writable_folder
+    from .._core.runtime import check_writable_file, check_writable_folder
     from ..evaluate import evaluation_bytes
 
     if args.save_baked is not None:
@@ -364,7 +364,7 @@ def _checked_outputs(args: argparse.Namespace, path: Path, config) -> None:
 def _checked_inputs(args: argparse.Namespace):
     """Every input checked before the scene is loaded and anything is baked or rendered: (path, config,
     bake config or None, ProbeSet or baked probes)."""
-    from .._core._checks import check_npz_archive
+    from .._core.runtime import check_npz_archive
     from ..probes import load_probes
 
     path = Path(args.probes)
@@ -465,7 +465,7 @@ def _check_probes_fit(probes, path: Path, scene, args: argparse.Namespace, confi
 
 class _Stages:
     """One line on stderr as each stage starts (``probeplace evaluate: [  12.3 s] bake: ...``), the seconds
-    since the command started first; none with ``--quiet`` (``_core._progress.set_progress``)."""
+    since the command started first; none with ``--quiet`` (``_core.runtime._progress.set_progress``)."""
 
     _EVAL: ClassVar[dict[str, str]] = {
         "reference": "reference render: {w}×{h} pixels, {spp} paths per pixel",
@@ -477,7 +477,7 @@ class _Stages:
     }
 
     def __init__(self, config) -> None:
-        from .._core import _progress
+        from .._core.runtime import _progress
 
         self.on = _progress._enabled
         self.t0 = time.perf_counter()

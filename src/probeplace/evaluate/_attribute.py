@@ -26,7 +26,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from .._core._probe_files import PROBE_ERROR_FORMAT
+from .._core.files import PROBE_ERROR_FORMAT
 from ..probes import TraceStatus
 from ._decompose import sample_errors
 

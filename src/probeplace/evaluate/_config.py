@@ -125,9 +125,9 @@ class EvalConfig:
 
 def check_eval_memory(config, what: str) -> None:
     """Refuse an evaluation whose reference render would not fit in memory, before anything is loaded
-    (the renderer's own estimate, ``_core._checks.check_image_memory``); an ``"auto"`` count is checked at
-    its cap ``max_spp``, the most it may render."""
-    from .._core._checks import check_image_memory
+    (the renderer's own estimate, ``_core.runtime._checks.check_image_memory``); an ``"auto"`` count is
+    checked at its cap ``max_spp``, the most it may render."""
+    from .._core.runtime import check_image_memory
     from ..render import COMPONENTS, RenderConfig
 
     check_image_memory(

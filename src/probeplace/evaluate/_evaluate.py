@@ -153,7 +153,7 @@ class EvalResult:
 def memory_bytes(lf: LightFieldProbes, subdivide: int) -> dict:
     """Probe memory as stored (Wang 2019 Table 2 style): total, per probe and by map, in bytes; and the
     light-field tracer's maps per usable probe at ``subdivide`` (``probes.tracer_bytes``)."""
-    stored = {"normal": "normal16"}  # two int16 components (_core._packed)
+    stored = {"normal": "normal16"}  # two int16 components (_core.maths._packed)
     by_map = {
         name: int(getattr(lf, stored.get(name, name)).nbytes)
         for name in ("radiance", "emission", "normal", "distance", "irradiance", "moments")

@@ -16,7 +16,7 @@ import numpy as np
 from PIL import Image
 
 from .._core import write_atomic, write_json_atomic
-from .._core._probe_files import PROBE_ERROR_FILE
+from .._core.files import PROBE_ERROR_FILE
 from ..render import save_exr, save_png
 from ._evaluate import EVAL_IMAGES, EvalResult
 from ._metrics import EVAL_COMPONENTS

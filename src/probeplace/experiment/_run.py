@@ -278,7 +278,7 @@ def run(cfg: Any, *, force: bool = False) -> RunResult:
         SceneError: the scene cannot be loaded, or has no light while the run bakes or evaluates.
         EvaluationUnavailable: ``eval.enabled`` without ``probeplace.evaluate``.
     """
-    from .._core._checks import check_writable_folder
+    from .._core.runtime import check_writable_folder
 
     cfg = to_config(cfg)
     final = run_dir(cfg)
@@ -318,7 +318,7 @@ def _execute(cfg: ExperimentConfig, partial: Path, final: Path) -> dict:
     """Every stage of :func:`run`, writing into ``partial``; returns the metrics."""
     import jax
 
-    from .._core._progress import progress_bar
+    from .._core.runtime import progress_bar
     from ..render import resolve_backend
     from ..scene import scene_summary
 

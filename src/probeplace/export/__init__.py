@@ -5,8 +5,8 @@ Formats (``probeplace export <probes> --format <name> --out <path>``; docs/expor
 usd (lossless round trips).
 """
 
-from .._core._io import read_exr as read_exr
-from .._core._probe_files import PROBE_SET_FORMAT as PROBE_SET_FORMAT
+from .._core.files._io import read_exr as read_exr
+from .._core.files._probe_files import PROBE_SET_FORMAT as PROBE_SET_FORMAT
 from ._data import ExportError as ExportError
 from ._data import ExportProbes as ExportProbes
 from ._data import LightFieldMaps as LightFieldMaps

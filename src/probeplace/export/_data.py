@@ -19,7 +19,7 @@ from typing import Any
 import numpy as np
 
 from .._core._errors import ProbeplaceError
-from .._core._probe_files import parse_probe_set, read_light_field_arrays
+from .._core.files._probe_files import parse_probe_set, read_light_field_arrays
 from ._sh import project_radiance
 
 

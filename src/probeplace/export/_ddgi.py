@@ -32,7 +32,7 @@ from pathlib import Path
 
 import numpy as np
 
-from .._core._io import write_bytes_atomic, write_exr, write_json_atomic
+from .._core.files._io import write_bytes_atomic, write_exr, write_json_atomic
 from ._data import ExportError, ExportProbes
 from ._io_util import f32_list
 from ._octa import add_border, resample_bordered, texel_directions, texel_solid_angles

@@ -20,7 +20,7 @@ from pathlib import Path
 
 import numpy as np
 
-from .._core._io import write_text_atomic
+from .._core.files._io import write_text_atomic
 from ._data import ExportError, ExportProbes
 from ._io_util import fmt_f32
 

@@ -1,4 +1,4 @@
-"""Small helpers shared by the format modules: exact float text (atomic writes are ``_core._io``'s)."""
+"""Small helpers shared by the format modules: exact float text (atomic writes are ``_core.files._io``'s)."""
 
 from __future__ import annotations
 

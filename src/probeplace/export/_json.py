@@ -23,7 +23,7 @@ from pathlib import Path
 
 import numpy as np
 
-from .._core._io import write_json_atomic
+from .._core.files._io import write_json_atomic
 from ._data import ExportError, ExportProbes
 from ._io_util import f32_list
 from ._sh import SH_CONVENTION, SH_ORDER

@@ -1,4 +1,4 @@
-"""NumPy twins of the octahedral helpers in ``probeplace._core._octahedral`` (which use JAX).
+"""NumPy twins of the octahedral helpers in ``probeplace._core.maths._octahedral`` (which use JAX).
 
 Exporters import no JAX, so the few pieces they need are re-stated here with the *same* conventions
 (Cigolle et al. 2014, JCGT 3(2) §3.6; octahedron axis world +Z; column ↔ u, row ↔ v, row 0 at v = −1;

@@ -8,7 +8,7 @@ from collections.abc import Callable
 from pathlib import Path
 
 from .._core._errors import ProbeplaceError
-from .._core._probe_files import PROBE_SET_FORMAT, read_json_doc
+from .._core.files._probe_files import PROBE_SET_FORMAT, read_json_doc
 from ._data import ExportError, ExportProbes, _probe_set_doc, read_light_field_npz
 from ._ddgi import write_ddgi
 from ._engines import write_godot, write_unity

@@ -1,15 +1,15 @@
 """Spherical harmonics L2 projection of baked octahedral radiance maps, in NumPy. The basis and its
-convention (three.js ``SphericalHarmonics3``; Ramamoorthi & Hanrahan 2001) are in ``_core/_sh.py``.
+convention (three.js ``SphericalHarmonics3``; Ramamoorthi & Hanrahan 2001) are in ``_core/maths/_sh.py``.
 """
 
 from __future__ import annotations
 
 import numpy as np
 
-from .._core._sh import COSINE_LOBE as COSINE_LOBE
-from .._core._sh import SH_CONVENTION as SH_CONVENTION
-from .._core._sh import SH_ORDER as SH_ORDER
-from .._core._sh import sh_basis as sh_basis
+from .._core.maths._sh import COSINE_LOBE as COSINE_LOBE
+from .._core.maths._sh import SH_CONVENTION as SH_CONVENTION
+from .._core.maths._sh import SH_ORDER as SH_ORDER
+from .._core.maths._sh import sh_basis as sh_basis
 from ._octa import texel_directions, texel_solid_angles
 
 

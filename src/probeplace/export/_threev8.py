@@ -40,7 +40,7 @@ from pathlib import Path
 
 import numpy as np
 
-from .._core._io import write_bytes_atomic, write_json_atomic
+from .._core.files._io import write_bytes_atomic, write_json_atomic
 from ._data import ExportError, ExportProbes
 from ._octa import resample_bordered
 from ._sh import SH_CONVENTION

@@ -21,7 +21,7 @@ from pathlib import Path
 
 import numpy as np
 
-from .._core._io import atomic_path
+from .._core.files._io import atomic_path
 from ._data import ExportError, ExportProbes
 from ._sh import SH_CONVENTION
 

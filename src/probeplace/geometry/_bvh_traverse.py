@@ -155,7 +155,7 @@ def _tri_step(triangles, st, o, d, *, sentinel, no_tri, any_hit):
 
 def _refill(carry, *, start, ray_rows, n, sentinel, no_tri):
     """Write finished lanes' hits to the output and hand each free lane the next queued ray (wavefront;
-    ``_core._lanes``)."""
+    ``_core.maths._lanes``)."""
     ray, st, nxt, out = carry
     idx, tb, tr, bu, bv, pend = st
     finished = (ray >= 0) & (idx == sentinel) & (pend == no_tri)

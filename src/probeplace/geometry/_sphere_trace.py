@@ -309,7 +309,7 @@ def trace_sdf_rays(
         hit_t = jnp.where(st.hit, st.t, jnp.inf)
         out_t, out_hit = write_finished((out_t, out_hit), finished, ray, (hit_t, st.hit), n)
         free = finished | (ray < 0)
-        queued, take, nxt = take_queued(free, nxt, n)  # the shared scheduler (_core._lanes)
+        queued, take, nxt = take_queued(free, nxt, n)  # the shared scheduler (_core.maths._lanes)
         ray = jnp.where(free, queued, ray)
         safe = jnp.clip(ray, 0, n - 1)
         fresh = jax.vmap(_fresh_state)(t0_all[safe], t1_all[safe])

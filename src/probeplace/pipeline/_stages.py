@@ -77,11 +77,11 @@ def write_placement(
     coverage beside the set (``<stem>.coverage.npz``, when the placement can give it) and the probe set
     ``out`` with ``metadata`` — last, so a probe set on disk means the rest was written; on any failure
     or interrupt the top view and the detail are removed. ``on_error`` wraps each write (a context
-    manager factory naming the file; ``_core._io.naming_the_file`` for the CLI)."""
+    manager factory naming the file; ``_core.files._io.naming_the_file`` for the CLI)."""
     from contextlib import nullcontext
 
     from .._core import save_probe_set
-    from .._core._probe_files import coverage_detail_path
+    from .._core.files import coverage_detail_path
     from ..placement import result_coverage_detail, save_top_view
 
     naming = on_error or (lambda _path: nullcontext())

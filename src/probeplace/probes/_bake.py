@@ -1,6 +1,6 @@
 """Bake light-field probes (McGuire et al. 2017 §3) for any :class:`~probeplace._core.ProbeSet`.
 
-Per probe and interior texel of the radiance map (octahedral, Cigolle 2014; ``_core._octahedral``):
+Per probe and interior texel of the radiance map (octahedral, Cigolle 2014; ``_core.maths._octahedral``):
 
 * the **geometry** maps — radial distance and shading normal — come from the ray through the texel
   *centre*, so each texel is one surfel (McGuire §4: "each octahedral texel describes a planar patch");
@@ -74,7 +74,7 @@ from .._core import (
     scene_box,
     texel_directions,
 )
-from .._core._progress import progress_bar
+from .._core.runtime import progress_bar
 from ._filter import distance_moments, irradiance_map
 from ._inside import probes_inside
 
@@ -337,7 +337,7 @@ def map_resolutions(scene: Scene, config: BakeConfig) -> tuple[int, int]:
 def probe_bytes(scene: Scene, config: BakeConfig) -> int:
     """Bytes one baked probe holds at ``config`` (its maps as :class:`LightFieldProbes` stores them: float32
     radiance, emission, irradiance, moments and distance, the two int16 normal components
-    (``_core._packed``) and the back-face bytes, all with their one-texel borders; position and flags):
+    (``_core.maths._packed``) and the back-face bytes, all with their one-texel borders; position and flags):
     what a memory budget divides by (``placement.space._budget.count_for_memory``)."""
     res, geo = map_resolutions(scene, config)
     floats = 2 * (res + 2) ** 2 * 3  # radiance, emission

@@ -1,5 +1,5 @@
 """Save and load baked probes as one ``.npz`` (lossless: every leaf is stored with its dtype; the
-normal maps are the two int16 components the probes hold, ``_core._packed``).
+normal maps are the two int16 components the probes hold, ``_core.maths._packed``).
 
 Beside the maps, the file holds the ``backface`` map and the bake settings
 (:class:`~probeplace._core.BakeSettings`, as a JSON string under ``bake_settings``). Files written before
@@ -17,7 +17,7 @@ import jax.numpy as jnp
 import numpy as np
 
 from .._core import BakeSettings, LightFieldProbes, ProbeplaceError, pack_normal, write_atomic
-from .._core._probe_files import LIGHT_FIELD_FORMAT, LIGHT_FIELD_FORMAT_V1, read_light_field_arrays
+from .._core.files import LIGHT_FIELD_FORMAT, LIGHT_FIELD_FORMAT_V1, read_light_field_arrays
 
 _MAPS = (
     "pos_world",

@@ -20,7 +20,7 @@
   probe's irradiance is used. ``visibility=False`` drops the back-face and Chebyshev terms: the classic
   irradiance probes of Luo 2022 (trilinear interpolation only), the light-leak baseline.
 * :func:`sh_irradiance` — the SH L2 baseline (Yang 2023): each probe's radiance map projected onto the
-  real SH L2 basis (``_core._sh``), irradiance E(n) = Σ Â_l c_lm Y_lm(n) (Ramamoorthi & Hanrahan 2001
+  real SH L2 basis (``_core.maths._sh``), irradiance E(n) = Σ Â_l c_lm Y_lm(n) (Ramamoorthi & Hanrahan 2001
   Eq. 8–9), interpolated with the same trilinear (or inverse-distance) weights, no visibility.
 * :func:`glossy_radiance` — radiance arriving along rays, traced through the probes and read by
   direction at the hit with a texel / bilinear / MIP filter: ``probes/_glossy.py`` (re-exported here).
@@ -48,7 +48,7 @@ from .._core import (
     texel_directions,
     texel_solid_angles,
 )
-from .._core._sh import COSINE_LOBE, sh_basis
+from .._core.maths import COSINE_LOBE, sh_basis
 from ._glossy import glossy_radiance
 from .tracer import GridIndex, VoxelIndex, grid_index, voxel_index
 
@@ -252,7 +252,7 @@ def diffuse_irradiance(
 
 
 def sh_coefficients(lf: LightFieldProbes, *, include_emission: bool = False) -> Float[Array, "n_probes 9 3"]:
-    """SH L2 coefficients of each probe's incident radiance (R&H 2001, three.js order, ``_core._sh``).
+    """SH L2 coefficients of each probe's incident radiance (R&H 2001, three.js order, ``_core.maths._sh``).
 
     c_lm = Σ_texels L(ω) Y_lm(ω) Δω over the interior radiance map (exact texel solid angles).
     ``include_emission`` adds what the probe sees emitted (lights, sky): the probe's total incident

@@ -24,7 +24,7 @@ import numpy as np
 from jaxtyping import Array, Bool, Float, Int, Key, UInt32
 
 from .._core import Camera, ConfigError, Scene, SceneError, check_memory, next_pow2
-from .._core._progress import progress_bar
+from .._core.runtime import progress_bar
 from ..geometry import AbstractRayCaster, make_caster
 from ._backends import BACKEND_CHOICES as BACKEND_CHOICES
 from ._backends import BACKENDS as BACKENDS

@@ -14,8 +14,8 @@ import os
 from dataclasses import dataclass
 from pathlib import Path
 
-from .._core._errors import ProbeplaceError
-from .._core._probe_files import coverage_detail_path, read_light_field_arrays
+from .._core import ProbeplaceError
+from .._core.files import coverage_detail_path, read_light_field_arrays
 from ..export import ExportError, ExportProbes, read_probes
 
 PROBES_JSON = "probes.json"
@@ -38,8 +38,9 @@ class ViewInput:
             ``config.yaml`` (``run_config``) says it.
         run_config: a run folder's ``config.yaml`` as a dict, or None.
         metadata: the probe file's metadata (placement record: which probes were relocated / filled).
-        coverage_path: the probe set's ``<stem>.coverage.npz`` (``_core._probe_files.coverage_detail_path``:
-            ``probeplace place`` and the runner write it), or None (an older version's, an engine file).
+        coverage_path: the probe set's ``<stem>.coverage.npz``
+            (``_core.files._probe_files.coverage_detail_path``: ``probeplace place`` and the runner write
+            it), or None (an older version's, an engine file).
     """
 
     path: Path

@@ -18,7 +18,7 @@ import numpy as np
 from ..export import oct_decode, sh_irradiance
 from ..scene import srgb8
 
-#: snorm16's largest magnitude: ``_core._packed``'s rule (normal16 = round(oct_encode(n) · 32767)).
+#: snorm16's largest magnitude: ``_core.maths._packed``'s rule (normal16 = round(oct_encode(n) · 32767)).
 _SNORM16 = 32767.0
 #: Displayed maps are resized to this many pixels a side: a 16² or 32² map enlarged texel by texel reads as
 #: texels in the GUI panel rather than as a browser-smoothed blur, and maps of any size sit side by side.

@@ -13,7 +13,7 @@ from pathlib import Path
 
 import numpy as np
 
-from .._core._probe_files import PROBE_ERROR_FILE, coverage_detail_path
+from .._core.files import PROBE_ERROR_FILE, coverage_detail_path
 from ..export import read_light_field_npz, sh_irradiance, texel_solid_angles
 from ._input import ViewInput
 from ._maps import exposure_white

@@ -41,7 +41,7 @@ import numpy as np
 from jaxtyping import Array, Float
 
 from ..._core import ConfigError, Scene, SceneError, next_pow2, scene_box
-from ..._core._sh import sh_basis
+from ..._core.maths import sh_basis
 from ..space import fibonacci_directions
 from ._tetra import RemovalPlan, TetMesh
 
@@ -98,7 +98,7 @@ def dense_probe_sh(
     key: jax.Array,
     caster=None,
 ) -> Float[Array, "n_probes 9 3"]:
-    """SH L2 incident radiance (three.js convention, :mod:`probeplace._core._sh`) at each probe.
+    """SH L2 incident radiance (three.js convention, :mod:`probeplace._core.maths._sh`) at each probe.
 
     Traces ``k² ≥ n_dirs`` stratified directions per probe with :func:`probeplace.render.trace_rays`
     (the ``full`` component: emitted + reflected, what the probe sees) and projects with Monte Carlo
@@ -584,7 +584,7 @@ def vardis_simplify(
         ConfigError: bad shapes or options, no stopping rule.
     """
     n = _check_stopping(positions, target, tolerance, per_iteration)
-    from ..._core._progress import progress_bar
+    from ..._core.runtime import progress_bar
 
     t0 = time.perf_counter()
     mesh, scorer = _setup(positions, values, points, error, n_dirs, weights, tet_jitter, tet_seed)

@@ -170,7 +170,7 @@ class CoverageDetail:
         """Write the detail as an ``.npz`` (atomically): :meth:`arrays` and ``format`` =
         ``probeplace.CoverageDetail/1``, read by ``probeplace view`` without JAX."""
         from ..._core import write_atomic
-        from ..._core._probe_files import COVERAGE_DETAIL_FORMAT
+        from ..._core.files import COVERAGE_DETAIL_FORMAT
 
         arrays = {"format": np.asarray(COVERAGE_DETAIL_FORMAT), **self.arrays()}
         write_atomic(path, lambda f: np.savez_compressed(f, **arrays))

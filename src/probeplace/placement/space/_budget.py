@@ -30,7 +30,7 @@ import numpy as np
 from scipy import spatial
 
 from ..._core import ConfigError, check_memory
-from ..._core._sizes import parse_bytes as parse_bytes  # re-exported: placement's public API
+from ..._core.runtime import parse_bytes as parse_bytes  # re-exported: placement's public API
 
 
 def check_probe_count(n: int, bytes_per_probe: int, what: str, settings: str, hint: str) -> None:

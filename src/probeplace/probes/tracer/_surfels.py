@@ -63,8 +63,8 @@ def plane_distance(x: Array, n: Array, w: Array) -> Array:
 
 
 def _octahedron_point64(u: np.ndarray, v: np.ndarray) -> np.ndarray:
-    """``_core._octahedral``'s uv → octahedron point in float64 NumPy (the cones are built once, on the host,
-    where float32 rounding would have to be argued away)."""
+    """``_core.maths._octahedral``'s uv → octahedron point in float64 NumPy (the cones are built once, on
+    the host, where float32 rounding would have to be argued away)."""
     z = 1.0 - np.abs(u) - np.abs(v)
     sign = lambda a: np.where(a >= 0, 1.0, -1.0)
     x = np.where(z < 0, (1.0 - np.abs(v)) * sign(u), u)

@@ -81,7 +81,7 @@ from ..._core import (
     oct_encode,
     texel_directions,
 )
-from ..._core._progress import progress_bar
+from ..._core.runtime import progress_bar
 from .._bake import _warn_probe_layout
 from ._index import GridIndex, VoxelIndex, grid_index, nearest_index, voxel_index
 from ._march import _candidates, _partners, trace_probe

@@ -353,7 +353,7 @@ def _refill(tr, lanes: _Lanes, queue, qptr):
     """Give idle lanes the next rays of the queue (``queue`` = (order, origins, directions, t_end))."""
     order, origins, directions, t_end = queue
     n = order.shape[0]
-    pos, take, qptr = take_queued(lanes.phase == IDLE, qptr, n)  # the shared scheduler (_core._lanes)
+    pos, take, qptr = take_queued(lanes.phase == IDLE, qptr, n)  # the shared scheduler (_core.maths._lanes)
     ray = jnp.take(order, jnp.maximum(pos, 0))
     rs0 = jax.vmap(lambda _: _ray_state(tr, origins.dtype))(ray)
     new = dict(

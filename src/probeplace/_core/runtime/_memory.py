@@ -5,7 +5,7 @@ from __future__ import annotations
 
 import os
 
-from ._errors import ConfigError, ResourceError
+from .._errors import ConfigError, ResourceError
 from ._sizes import parse_bytes
 
 MAX_BYTES_ENV = "PROBEPLACE_MAX_BYTES"

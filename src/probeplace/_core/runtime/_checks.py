@@ -13,7 +13,7 @@ import shutil
 import tempfile
 from pathlib import Path
 
-from ._errors import ConfigError
+from .._errors import ConfigError
 from ._memory import check_memory
 
 # A .npz is a zip archive: every one starts with a local file header (or, empty, the end record).

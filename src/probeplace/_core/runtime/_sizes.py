@@ -5,7 +5,7 @@ from __future__ import annotations
 
 import re
 
-from ._errors import ConfigError
+from .._errors import ConfigError
 
 # Decimal (SI) and binary (IEC) units. Read case-insensitively except where case is the only thing that
 # tells bits from bytes (``Mb``, ``Gib``: see :func:`parse_bytes`).

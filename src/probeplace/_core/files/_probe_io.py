@@ -12,10 +12,10 @@ from pathlib import Path
 import jax.numpy as jnp
 import numpy as np
 
-from ._errors import ProbeplaceError
+from .._errors import ProbeplaceError
+from .._types import ProbeSet
 from ._io import write_json_atomic
 from ._probe_files import PROBE_SET_FORMAT, parse_probe_set, read_json_doc
-from ._types import ProbeSet
 
 
 def save_probe_set(

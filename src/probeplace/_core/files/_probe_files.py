@@ -21,7 +21,7 @@ from pathlib import Path
 
 import numpy as np
 
-from ._errors import ProbeplaceError
+from .._errors import ProbeplaceError
 
 PROBE_SET_FORMAT = "probeplace.ProbeSet/1"
 #: Each probe's part in the placement's coverage (``placement.CoverageDetail``), beside its probe set.
