@@ -30,3 +30,25 @@ def cornell():
         width=16, height=16, glossy_spp=4, max_depth=4, timing_repeats=1, bootstrap_resamples=20
     )
     return scene, lf, caster, base
+
+
+def evaluation_steps(scene, lf, caster, config):
+    """The evaluation's steps, as ``evaluate`` runs them at ``config``'s fixed counts: the arguments of
+    ``score`` after ``config`` (seed, reference, primary samples, CRN reference, shading, perfect trace)."""
+    from probeplace.evaluate import (
+        crn_reference,
+        perfect_trace,
+        render_reference,
+        sample_primary,
+        shade_probes,
+    )
+    from probeplace.probes import glossy_maps
+
+    camera, seed = scene.view("front"), int(config.seed)
+    ref = render_reference(scene, camera, config, seed=seed, caster=caster)
+    prim = sample_primary(scene, camera, config, seed=seed, caster=caster)
+    crn = crn_reference(scene, prim, config, seed=seed, caster=caster)
+    maps = glossy_maps(lf, config.glossy_filter, include_emission=False)
+    shading = shade_probes(scene, lf, prim, config, maps=maps)
+    perfect = perfect_trace(lf, prim, config, caster=caster, maps=maps)
+    return seed, ref, prim, crn, shading, perfect

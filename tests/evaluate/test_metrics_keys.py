@@ -27,21 +27,17 @@ from probeplace.evaluate import (
     EvalMetrics,
     EvalResult,
     bootstrap_ci,
-    crn_reference,
     glossy_terms,
     hit_agreement,
     memory_bytes,
     metric_key,
-    perfect_trace,
     relative_mse,
-    render_reference,
-    sample_primary,
     score,
-    shade_probes,
 )
 from probeplace.evaluate._decompose import light_leak, pixel_means
 from probeplace.evaluate._samples import CountChoice, Pilot
-from probeplace.probes import TraceStatus, glossy_maps
+from probeplace.probes import TraceStatus
+from tests.evaluate.conftest import evaluation_steps
 
 DOC = Path(__file__).resolve().parents[2] / "docs" / "evaluate.md"
 
@@ -224,14 +220,7 @@ def steps(cornell):
     """The evaluation's steps on the shared tiny Cornell box at fixed counts (as ``evaluate`` runs them)."""
     scene, lf, caster, base = cornell
     config = dataclasses.replace(base, spp=8, glossy_ref_spp=2)
-    camera, seed = scene.view("front"), int(config.seed)
-    ref = render_reference(scene, camera, config, seed=seed, caster=caster)
-    prim = sample_primary(scene, camera, config, seed=seed, caster=caster)
-    crn = crn_reference(scene, prim, config, seed=seed, caster=caster)
-    maps = glossy_maps(lf, config.glossy_filter, include_emission=False)
-    shading = shade_probes(scene, lf, prim, config, maps=maps)
-    perfect = perfect_trace(lf, prim, config, caster=caster, maps=maps)
-    return (scene, lf, "front", config, seed, ref, prim, crn, shading, perfect)
+    return (scene, lf, "front", config, *evaluation_steps(scene, lf, caster, config))
 
 
 #: Counts as ``evaluate`` passes them: both fixed, and one chosen from a (made-up) pilot.

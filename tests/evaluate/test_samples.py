@@ -108,27 +108,13 @@ def test_auto_is_a_fixed_run_at_the_chosen_counts(cornell, auto):
 def test_fixed_counts_are_the_steps_run_one_by_one(cornell):
     """(c) With fixed counts ``evaluate`` is its steps run one by one and scored (the evaluation as it was
     before counts could be chosen): the same metrics bit for bit, but the wall times."""
-    from probeplace.evaluate import (
-        crn_reference,
-        perfect_trace,
-        render_reference,
-        sample_primary,
-        score,
-        shade_probes,
-    )
-    from probeplace.probes import glossy_maps
+    from probeplace.evaluate import score
+    from tests.evaluate.conftest import evaluation_steps
 
     scene, lf, caster, base = cornell
     config = dataclasses.replace(base, spp=8, glossy_ref_spp=2)
     got = evaluate(scene, lf, view="front", config=config, caster=caster).metrics
-    camera, seed = scene.view("front"), config.seed
-    ref = render_reference(scene, camera, config, seed=seed, caster=caster)
-    prim = sample_primary(scene, camera, config, seed=seed, caster=caster)
-    crn = crn_reference(scene, prim, config, seed=seed, caster=caster)
-    maps = glossy_maps(lf, config.glossy_filter, include_emission=False)
-    shading = shade_probes(scene, lf, prim, config, maps=maps)
-    perfect = perfect_trace(lf, prim, config, caster=caster, maps=maps)
-    want = score(scene, lf, "front", config, seed, ref, prim, crn, shading, perfect).metrics
+    want = score(scene, lf, "front", config, *evaluation_steps(scene, lf, caster, config)).metrics
     _same(_drop(got), _drop(want))
     assert (got["spp"], got["glossy_ref_spp"]) == (8, 2)
 
