@@ -18,7 +18,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from ._core import Scene, load_pyplot
+from ._core import RunFiles, Scene, load_pyplot
 from ._core.runtime import progress_bar
 
 DEMO_WIDTH = 128
@@ -142,7 +142,7 @@ def _stage_place(scene: Scene, cfg: dict, out: Path) -> tuple[dict, object]:
     write_placement(  # probes.json, its coverage detail and the top view
         scene,
         placed,
-        out / "probes.json",
+        out / RunFiles.probes,
         png=out / "probes_top_view.png",
         title=f"{scene.name}: {len(pos)} probes (auto)",
         metadata=meta,
@@ -172,9 +172,9 @@ def _stage_bake(scene: Scene, probes, cfg: dict, out: Path) -> dict:
         pad=False,
     ).probes
     seconds = time.perf_counter() - t0
-    save_probes(out / "probes_baked.npz", lf)
+    save_probes(out / RunFiles.baked, lf)
     save_contact_sheet(lf, out / "probes_contact_sheet.png")
-    gltf = export_baked(out / "probes_baked.npz", ["gltf"], out)
+    gltf = export_baked(out / RunFiles.baked, ["gltf"], out)
     return {
         "radiance_res": lf.radiance_res,
         "probes": int(lf.pos_world.shape[0]),

@@ -53,3 +53,20 @@ def test_the_check_sees_both_call_spellings(tmp_path):
     f = tmp_path / "m.py"
     f.write_text("from x import bake_probes\nimport y\nbake_probes(1)\ny.load_mitsuba()\nz = pad_probes\n")
     assert calls_of(f) == [(3, "bake_probes"), (4, "load_mitsuba")]
+
+
+def test_run_folder_names_are_spelled_once():
+    """The files of a run folder are named in ``_core.files.RunFiles`` only: no other module spells
+    ``"metrics.json"``, ``"probes_baked.npz"``, ... as a string of its own."""
+    from probeplace._core import RunFiles
+
+    names = {v for k, v in vars(RunFiles).items() if not k.startswith("_") and isinstance(v, str)}
+    names -= {RunFiles.eval_dir, RunFiles.export_dir}  # "eval", "export": words used otherwise too
+    bad = []
+    for path in sorted(ROOT.rglob("*.py")):
+        if "_vendor" in path.parts or path.name == "_run_files.py":
+            continue
+        for node in ast.walk(ast.parse(path.read_text(encoding="utf-8"))):
+            if isinstance(node, ast.Constant) and node.value in names:
+                bad.append(f"{path.relative_to(ROOT)}:{node.lineno} {node.value!r}")
+    assert not bad, "use probeplace._core.RunFiles:\n" + "\n".join(bad)

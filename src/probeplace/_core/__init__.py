@@ -39,6 +39,7 @@ _LAZY = {
     **dict.fromkeys(
         (
             "PROBE_SET_FORMAT",
+            "RunFiles",
             "atomic_path",
             "load_probe_set",
             "load_pyplot",
@@ -128,6 +129,7 @@ if TYPE_CHECKING:  # what static checkers and IDEs see; __getattr__ gives the sa
     from ._types import Sun as Sun
     from ._types import scene_box as scene_box
     from .files import PROBE_SET_FORMAT as PROBE_SET_FORMAT
+    from .files import RunFiles as RunFiles
     from .files import atomic_path as atomic_path
     from .files import load_probe_set as load_probe_set
     from .files import load_pyplot as load_pyplot

@@ -7,7 +7,7 @@ import logging
 import os
 import sys
 
-from .._core import ConfigError, ProbeplaceError
+from .._core import ConfigError, ProbeplaceError, RunFiles
 from . import _options
 
 
@@ -531,7 +531,7 @@ def _fill_place_parser(pl: argparse.ArgumentParser) -> None:
         "sees head-on (reachable), or only what the view cameras' positions see (views: Wang 2019's "
         "playable space)",
     )
-    pl.add_argument("--out", default="probes.json", help="ProbeSet JSON file to write")
+    pl.add_argument("--out", default=RunFiles.probes, help="ProbeSet JSON file to write")
     pl.add_argument("--png", default=None, help="top view PNG (default: --out with .png)")
     pl.set_defaults(func=_cmd_place)
 

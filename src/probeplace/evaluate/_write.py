@@ -16,7 +16,7 @@ import numpy as np
 from PIL import Image
 
 from .._core import write_atomic, write_json_atomic
-from .._core.files import PROBE_ERROR_FILE
+from .._core.files import PROBE_ERROR_FILE, RunFiles
 from ..render import save_exr, save_png
 from ._evaluate import EVAL_IMAGES, EvalResult
 from ._metrics import EVAL_COMPONENTS
@@ -92,7 +92,7 @@ def write_evaluation(result: EvalResult, out_dir: str | os.PathLike) -> dict[str
     stage = Path(tempfile.mkdtemp(prefix=f".{out.name}.partial-", dir=out.parent))
     try:
         staged = _write_files(result, stage)
-        (out / "metrics.json").unlink(missing_ok=True)  # an earlier evaluation's: unfinished until the end
+        (out / RunFiles.metrics).unlink(missing_ok=True)  # an earlier evaluation's: unfinished until the end
         # metrics.json last: an interrupted move leaves an evaluation without it, i.e. unfinished
         names = sorted(staged, key=lambda k: k == "metrics")
         for k in names:
@@ -119,7 +119,7 @@ def _write_files(result: EvalResult, out: Path) -> dict[str, Path]:
         paths[f"error_{c}_false"] = p
     for name, img in result.images.items():
         paths[name] = save_png(out / f"{name}.png", img)
-    paths["exr"] = save_exr(out / "images.exr", result.images, main="probe_full")
+    paths["exr"] = save_exr(out / RunFiles.images, result.images, main="probe_full")
     if result.probe_error is not None:  # each probe's share of the error (_attribute)
         arrays = result.probe_error
         paths["probe_error"] = write_atomic(
@@ -127,5 +127,5 @@ def _write_files(result: EvalResult, out: Path) -> dict[str, Path]:
         )
     metrics = dict(result.metrics)
     metrics["error_png_vmax"] = vmax
-    paths["metrics"] = write_json_atomic(out / "metrics.json", metrics)
+    paths["metrics"] = write_json_atomic(out / RunFiles.metrics, metrics)
     return paths

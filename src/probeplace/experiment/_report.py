@@ -38,6 +38,7 @@ from pathlib import Path
 
 import numpy as np
 
+from .._core import RunFiles
 from ._report_charts import (
     colours,
     fig_errors,
@@ -89,7 +90,7 @@ def load_runs(exp_dir: str | os.PathLike) -> list[dict]:
     group as an ``evaluate.EvalMetrics`` (None for a run without one; ``_report_data.evaluation``)."""
     runs = []
     for d in iter_runs(exp_dir):
-        m = json.loads((d / "metrics.json").read_text())
+        m = json.loads((d / RunFiles.metrics).read_text())
         m["dir"] = d
         m["evaluation"] = evaluation(m)
         runs.append(m)
@@ -518,7 +519,7 @@ def _top_views(runs: list[dict], out: Path, scenes: dict) -> tuple[list[Path], l
             continue
         if id(scene) not in tris:
             tris[id(scene)] = np.asarray(scene.vertices)[np.asarray(scene.faces)]
-        probes, _ = load_probe_set(r["dir"] / "probes.json")
+        probes, _ = load_probe_set(r["dir"] / RunFiles.probes)
         pos = np.asarray(probes.pos_world)[np.asarray(probes.active)]
         fig = fig_probe_views(tris[id(scene)], pos, f"{r['label']}: {len(pos)} probes · seed {r['seed']}")
         paths.append(save_figure(fig, out / "top_views" / f"{r['run']}.png", dpi=80))

@@ -17,7 +17,7 @@ from pathlib import Path
 
 import numpy as np
 
-from .._core import load_pyplot
+from .._core import RunFiles, load_pyplot
 from ._report_data import (
     COMPONENTS,
     POSES,
@@ -224,7 +224,7 @@ def fig_errors(runs: list[dict], component: str = "glossy_indirect"):
 
     imgs = []
     for r in sorted(runs, key=lambda r: (r["label"], r["n_probes"], r["seed"])):
-        exr = r["dir"] / "eval" / "images.exr"
+        exr = r["dir"] / RunFiles.eval_dir / RunFiles.images
         if exr.is_file():
             layers = load_exr(exr)
             if f"error_{component}" in layers:

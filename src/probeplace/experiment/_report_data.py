@@ -29,6 +29,7 @@ from collections.abc import Callable
 
 import numpy as np
 
+from .._core import RunFiles
 from ..evaluate import EVAL_COMPONENTS, METRIC_KEYS, EvalMetrics, metric_key
 
 #: The image component whose MSE the report ranks by (its tables, time and memory charts).
@@ -163,7 +164,7 @@ def black_mse(r: dict, component: str = PRIMARY) -> float | None:
     v = None if ev is None else _num(ev.component(component).mse_black)
     if v is not None:
         return v
-    exr = r["dir"] / "eval" / "images.exr"
+    exr = r["dir"] / RunFiles.eval_dir / RunFiles.images
     if not exr.exists():
         return None
     from ..render import load_exr
@@ -289,13 +290,13 @@ def placement_twins(runs: list[dict], labels: list[str]) -> dict:
     from .._core import load_probe_set
 
     def positions(r):
-        probes, _ = load_probe_set(r["dir"] / "probes.json")
+        probes, _ = load_probe_set(r["dir"] / RunFiles.probes)
         p = np.asarray(probes.pos_world)[np.asarray(probes.active)]
         return p[np.lexsort(p.T[::-1])]
 
     by = defaultdict(list)
     for r in runs:
-        if (r["dir"] / "probes.json").is_file():
+        if (r["dir"] / RunFiles.probes).is_file():
             by[_placement_key(r)].append(r)
     twins = {}
     for group_ in by.values():
@@ -351,7 +352,7 @@ def load_scenes(runs: list[dict]) -> dict:
 
     by_key, out = {}, {}
     for r in runs:
-        cfg = to_config(load_config_yaml(r["dir"] / "config.yaml"))
+        cfg = to_config(load_config_yaml(r["dir"] / RunFiles.config))
         key = json.dumps(config_to_dict(cfg)["scene"], sort_keys=True)
         if key not in by_key:
             try:

@@ -29,6 +29,7 @@ from pathlib import Path
 
 import numpy as np
 
+from .._core import RunFiles
 from ..evaluate import RunSettings
 from ._report_data import COMPONENTS, PRIMARY, comparator, evaluation, figure_words, grid_count, mse, pose
 
@@ -150,7 +151,7 @@ def _component_block(reps: list[dict], layers: dict, comp: str, opened: bool) ->
     vmax = float(np.percentile(np.concatenate([x.ravel() for x in errs]), 99)) if errs else 0.0
     rows = []
     for r in reps:
-        lay, ev = layers[r["run"]], r["dir"] / "eval"
+        lay, ev = layers[r["run"]], r["dir"] / RunFiles.eval_dir
         shape = next((a.shape for a in lay.values()), None)
         width = _display_px(shape[1]) if shape else MIN_CSS_PX
         aspect = f"{shape[1]} / {shape[0]}" if shape else "1"
@@ -190,7 +191,7 @@ def _layers(r: dict) -> dict[str, np.ndarray]:
     """The run's evaluation images (``eval/images.exr``) by name; empty when it saved none."""
     from ..render import load_exr
 
-    exr = r["dir"] / "eval" / "images.exr"
+    exr = r["dir"] / RunFiles.eval_dir / RunFiles.images
     if not exr.is_file():
         return {}
     # the EXR's unnamed main layer is the evaluation's probe_full (evaluate.write_evaluation)
@@ -236,7 +237,7 @@ def _view_payload(scene, reps: list[dict], col: dict) -> dict:
     lo, hi = mesh.vertices.min(axis=0), mesh.vertices.max(axis=0)
     sets = []
     for r in reps:
-        probes, _ = load_probe_set(r["dir"] / "probes.json")
+        probes, _ = load_probe_set(r["dir"] / RunFiles.probes)
         pos = np.asarray(probes.pos_world, float)[np.asarray(probes.active)]
         name = f"{r['label']} · {len(pos)} probes · seed {r['seed']}"
         sets.append({"name": name, "run": r["run"], "colour": to_hex(col[r["label"]]), "pos": pos.tolist()})

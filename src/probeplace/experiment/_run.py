@@ -27,7 +27,7 @@ from typing import Any
 
 import numpy as np
 
-from .._core import ConfigError, ProbeplaceError
+from .._core import ConfigError, ProbeplaceError, RunFiles
 from . import _results
 from ._inputs import NOT_COMPARED, RECORD_ONLY, json_digest, run_inputs
 from ._schema import (
@@ -251,7 +251,7 @@ def _evaluate(scene, lf, cfg: ExperimentConfig, caster, key, out: Path) -> dict:
 
     config = eval_config(cfg)
     result = evaluate(scene, lf, view=cfg.eval.view, config=config, caster=caster, key=key)
-    write_evaluation(result, out / "eval")
+    write_evaluation(result, out / RunFiles.eval_dir)
     metrics = dict(result.metrics)
     metrics.setdefault("backend", config.backend)  # who rendered the reference
     return metrics
@@ -287,7 +287,7 @@ def run(cfg: Any, *, force: bool = False) -> RunResult:
         stale = finished_run_differences(cfg, run_inputs(cfg.scene), final)
         if stale is None:
             log.info("skip %s (finished)", final)
-            return RunResult(final, json.loads((final / "metrics.json").read_text()), skipped=True)
+            return RunResult(final, json.loads((final / RunFiles.metrics).read_text()), skipped=True)
         if redo != "stale":
             raise ConfigError(stale)
         log.info("redo %s: %s", final, stale)
@@ -322,8 +322,8 @@ def _execute(cfg: ExperimentConfig, partial: Path, final: Path) -> dict:
     from ..render import resolve_backend
     from ..scene import scene_summary
 
-    (partial / "config.yaml").write_text(config_to_yaml(cfg))
-    _results.write_json(partial / "env.json", _results.environment())
+    (partial / RunFiles.config).write_text(config_to_yaml(cfg))
+    _results.write_json(partial / RunFiles.env, _results.environment())
     k_bake, k_eval = jax.random.split(jax.random.key(cfg.seed))
     timings: dict[str, float] = {}
     metrics = _run_record(cfg, final, timings)
@@ -343,7 +343,7 @@ def _execute(cfg: ExperimentConfig, partial: Path, final: Path) -> dict:
     timings["scene_s"] = time.perf_counter() - t0
     # the file hashes are cached by size and mtime: run() hashed them already
     inputs = {**run_inputs(cfg.scene), "scene_loaded": scene_summary(scene)}
-    _results.write_json(partial / "inputs.json", inputs)
+    _results.write_json(partial / RunFiles.inputs, inputs)
     _check_view(cfg, scene)
     stage("place")
     probes = _place_stage(cfg, scene, translation, partial, final, timings, metrics)
@@ -366,7 +366,7 @@ def _execute(cfg: ExperimentConfig, partial: Path, final: Path) -> dict:
     timings["place_bake_s"] = timings["place_s"] + timings.get("bake_s", 0.0)
     timings["place_bake_run_s"] = timings["place_run_s"] + timings.get("bake_run_s", 0.0)
     metrics["failures"] = failures(metrics)
-    _results.write_json(partial / "metrics.json", metrics)
+    _results.write_json(partial / RunFiles.metrics, metrics)
     return metrics
 
 
@@ -473,8 +473,8 @@ def _place_stage(cfg: ExperimentConfig, scene, translation, partial: Path, final
     write_placement(
         scene,
         placed,
-        partial / "probes.json",
-        png=partial / "top_view.png",
+        partial / RunFiles.probes,
+        png=partial / RunFiles.top_view,
         title=f"{final.name}: {len(pos)} probes",
         metadata=_jsonable(placed.metadata),
     )
@@ -524,7 +524,7 @@ def _bake_stage(cfg: ExperimentConfig, scene, probes, key, partial: Path, timing
         )
         lf = jax.block_until_ready(baked.probes)
     metrics["bake_samples"] = baked.samples.to_dict()
-    save_probes(partial / "probes_baked.npz", lf)
+    save_probes(partial / RunFiles.baked, lf)
     metrics["inside_bake"] = int((np.asarray(lf.inside) & np.asarray(lf.active)).sum())
     # the settings stored with the probes (backend included), plus the geometry maps' resolution
     # (interior: the stored maps carry a one-texel border)
@@ -539,7 +539,7 @@ def _export_stage(cfg: ExperimentConfig, partial: Path) -> list[str]:
     """Engine exports of the baked probes under ``export/``; their paths relative to the run folder."""
     from ..pipeline import export_baked
 
-    files = export_baked(partial / "probes_baked.npz", cfg.export.formats, partial / "export")
+    files = export_baked(partial / RunFiles.baked, cfg.export.formats, partial / RunFiles.export_dir)
     return [str(p.relative_to(partial)) for p in files]
 
 
@@ -551,7 +551,7 @@ _WAYS_OUT = "redo it with redo=stale (run(..., force=True)), use another name=..
 
 def _config_differences(cfg: ExperimentConfig, final: Path) -> list[str]:
     """The config keys whose values differ from the finished run's ``config.yaml``."""
-    old = _flat(load_config_yaml(final / "config.yaml"))
+    old = _flat(load_config_yaml(final / RunFiles.config))
     new = _flat(config_to_dict(cfg))
     # a key the finished run's config lacks came into the schema later: that run had its default
     default = _flat(config_to_dict(ExperimentConfig()))
@@ -606,7 +606,7 @@ def finished_run_differences(cfg: ExperimentConfig, inputs: dict, final: Path) -
     why = _config_refusal(cfg, final)
     if why is not None:
         return why
-    recorded = final / "inputs.json"
+    recorded = final / RunFiles.inputs
     if not recorded.is_file():
         return (
             f"{final} is a finished run whose inputs (scene file hash, resolved sidecar, code version) were "

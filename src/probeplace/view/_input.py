@@ -15,12 +15,9 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from .._core import ProbeplaceError
-from .._core.files import coverage_detail_path, read_light_field_arrays
+from .._core.files import RunFiles, coverage_detail_path, read_light_field_arrays
 from ..export import ExportError, ExportProbes, read_probes
 
-PROBES_JSON = "probes.json"
-BAKED_NPZ = "probes_baked.npz"
-CONFIG_YAML = "config.yaml"
 _WHAT = "give a run folder (it holds probes.json) or a probes file (.json, .npz, .glb, .usda, ...)"
 
 
@@ -82,15 +79,15 @@ def resolve_input(path: str | os.PathLike, scene: str | None = None) -> ViewInpu
 
 
 def _run_folder(d: Path, scene: str | None) -> ViewInput:
-    probes_path = d / PROBES_JSON
+    probes_path = d / RunFiles.probes
     if not probes_path.is_file():
         raise ProbeplaceError(
-            f"{d}: not a finished run (no {PROBES_JSON}); give a run folder of experiments/run.py whose "
+            f"{d}: not a finished run (no {RunFiles.probes}); give a run folder of experiments/run.py whose "
             "placement finished, or a probes file with --scene"
         )
     probes = _read(probes_path)
     config = None
-    cfg_path = d / CONFIG_YAML
+    cfg_path = d / RunFiles.config
     if cfg_path.is_file():
         import yaml
 
@@ -104,15 +101,15 @@ def _run_folder(d: Path, scene: str | None) -> ViewInput:
         check_scene_found(scene, "--scene")
     elif config is None:
         raise ProbeplaceError(
-            f"{d}: the run folder has no {CONFIG_YAML} naming its scene; give --scene NAME_OR_PATH"
+            f"{d}: the run folder has no {RunFiles.config} naming its scene; give --scene NAME_OR_PATH"
         )
     else:
         name = (config.get("scene") or {}).get("name") if isinstance(config.get("scene"), dict) else None
         if not isinstance(name, str) or not name:
             raise ProbeplaceError(f"{cfg_path}: no scene.name; give --scene NAME_OR_PATH")
         check_scene_found(name, f"{cfg_path} (scene.name)")
-    baked = d / BAKED_NPZ
-    eval_dir = d / "eval"
+    baked = d / RunFiles.baked
+    eval_dir = d / RunFiles.eval_dir
     coverage = coverage_detail_path(probes_path)
     return ViewInput(
         d,

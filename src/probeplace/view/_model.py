@@ -13,7 +13,7 @@ from pathlib import Path
 
 import numpy as np
 
-from .._core.files import PROBE_ERROR_FILE, coverage_detail_path
+from .._core.files import PROBE_ERROR_FILE, RunFiles, coverage_detail_path
 from ..export import read_light_field_npz, sh_irradiance, texel_solid_angles
 from ._input import ViewInput
 from ._maps import exposure_white
@@ -501,7 +501,7 @@ def _eval_images(inp: ViewInput) -> tuple[EvalImages | None, str]:
         return None, f"no error images: they come with {where}"
     images = {p.name[len("error_") : -len("_false.png")]: p for p in sorted(d.glob("error_*_false.png"))}
     try:
-        metrics = json.loads((d / "metrics.json").read_text())
+        metrics = json.loads((d / RunFiles.metrics).read_text())
     except (OSError, ValueError):
         metrics = {}
     if not images or not isinstance(metrics, dict) or "width" not in metrics:

@@ -28,6 +28,7 @@ _LAZY = {
         "_io",
     ),
     "load_pyplot": "_plotting",
+    "RunFiles": "_run_files",
     **dict.fromkeys(
         (
             "COVERAGE_DETAIL_FORMAT",
@@ -68,6 +69,7 @@ if TYPE_CHECKING:  # what static checkers and IDEs see; __getattr__ gives the sa
     from ._probe_files import read_light_field_arrays as read_light_field_arrays
     from ._probe_io import load_probe_set as load_probe_set
     from ._probe_io import save_probe_set as save_probe_set
+    from ._run_files import RunFiles as RunFiles
 
 
 __getattr__, __dir__ = lazy_exports(__name__, _LAZY, globals(), [*_LAZY])
