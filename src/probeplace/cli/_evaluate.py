@@ -47,11 +47,14 @@ def add_parser(sub) -> None:
     )
     e.add_argument("--scene", required=True, help="scene name or file (see `probeplace scenes`)")
     add_scene_options(e)
+    from ..export import READABLE_SUFFIXES  # NumPy only
+
+    engine_files = ", ".join(x for x in READABLE_SUFFIXES if x != ".json")
     e.add_argument(
         "--probes",
         required=True,
-        help="ProbeSet .json (probeplace place), baked .npz, or a set exported to an engine file (.glb, "
-        ".gltf, .usda, .usdc, .usd, .lodprobes, probeplace.ProbeExport .json: re-baked as placed there)",
+        help="ProbeSet .json (probeplace place), baked .npz, or a set exported to an engine file "
+        f"({engine_files}, probeplace.ProbeExport .json: re-baked as placed there)",
     )
     e.add_argument("--view", default=None, help="camera name (default: the scene's first view)")
     e.add_argument("--out", default="results/eval", help="output folder (metrics.json is written last)")
@@ -368,10 +371,15 @@ def _checked_inputs(args: argparse.Namespace):
     from ..probes import load_probes
 
     path = Path(args.probes)
-    if path.suffix not in (".json", ".npz", *EXPORTED_SUFFIXES):
+    # exported sets too (export.read_probes; issue 36: a set edited in an engine is scored again; positions
+    # in scene units, in probeplace's frame)
+    from ..export import READABLE_SUFFIXES
+
+    exported = [x for x in READABLE_SUFFIXES if x != ".json"]
+    if path.suffix not in (".json", ".npz", *exported):
         raise ConfigError(
             f"--probes must be a ProbeSet .json, a baked .npz or an exported set "
-            f"({', '.join(EXPORTED_SUFFIXES)}, probeplace.ProbeExport .json), got {path}"
+            f"({', '.join(exported)}, probeplace.ProbeExport .json), got {path}"
         )
     config = eval_config(args)  # first: the output's size bound needs a sensible image size
     _checked_outputs(args, path, config)
@@ -389,11 +397,6 @@ def _checked_inputs(args: argparse.Namespace):
     if not bool(np.asarray(probes.active).any()):
         raise ConfigError(f"--probes: {path} holds no active probes; nothing to bake or evaluate")
     return path, config, bake_cfg, probes
-
-
-#: Files of exported probe sets ``--probes`` reads (``export.read_probes``; issue 36: a set edited in an
-#: engine is scored again). Their positions are in scene units, in probeplace's frame (``export``).
-EXPORTED_SUFFIXES = (".glb", ".gltf", ".usda", ".usdc", ".usd", ".lodprobes")
 
 
 def _placed_probes(path: Path):

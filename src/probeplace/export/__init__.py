@@ -24,6 +24,7 @@ from ._json import write_json as write_json
 from ._octa import oct_decode as oct_decode  # NumPy octahedral helpers (``probeplace view``)
 from ._octa import texel_solid_angles as texel_solid_angles
 from ._registry import FORMATS as FORMATS
+from ._registry import READABLE_SUFFIXES as READABLE_SUFFIXES
 from ._registry import export_probes as export_probes
 from ._registry import import_probes as import_probes
 from ._registry import read_probes as read_probes

@@ -41,6 +41,11 @@ FORMATS: dict[str, ExportFormat] = {
 }
 
 
+#: The file suffixes :func:`read_probes` reads: those of every format with a reader (``.json`` is also a
+#: ProbeSet's; the file's own tag tells them apart).
+READABLE_SUFFIXES = tuple(dict.fromkeys(ext for f in FORMATS.values() if f.read for ext in f.extensions))
+
+
 def export_probes(probes: ExportProbes, fmt: str, out: str | os.PathLike, **options) -> list[Path]:
     """Write ``probes`` in format ``fmt`` (a key of :data:`FORMATS`) to ``out``; returns the files written.
 
