@@ -25,6 +25,7 @@ _LAZY = {
     **dict.fromkeys(("MAX_BYTES_ENV", "check_memory", "memory_limit_bytes"), "_memory"),
     **dict.fromkeys(("progress_bar", "set_progress"), "_progress"),
     "parse_bytes": "_sizes",
+    **dict.fromkeys(("check_settings", "setting"), "_settings"),
 }
 
 if TYPE_CHECKING:  # what static checkers and IDEs see; __getattr__ gives the same at run time
@@ -39,6 +40,8 @@ if TYPE_CHECKING:  # what static checkers and IDEs see; __getattr__ gives the sa
     from ._memory import memory_limit_bytes as memory_limit_bytes
     from ._progress import progress_bar as progress_bar
     from ._progress import set_progress as set_progress
+    from ._settings import check_settings as check_settings
+    from ._settings import setting as setting
     from ._sizes import parse_bytes as parse_bytes
 
 

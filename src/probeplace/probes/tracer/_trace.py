@@ -81,7 +81,7 @@ from ..._core import (
     oct_encode,
     texel_directions,
 )
-from ..._core.runtime import progress_bar
+from ..._core.runtime import check_settings, progress_bar, setting
 from .._bake import _warn_probe_layout
 from ._index import GridIndex, VoxelIndex, grid_index, nearest_index, voxel_index
 from ._march import _candidates, _partners, trace_probe
@@ -166,95 +166,32 @@ class TraceConfig:
             then).
     """
 
-    hierarchy: str = "hiz"
-    coarse_factor: int = 16
-    hiz_skip_top: int = 1
-    thickness: float = 0.015
-    start_tol: float = 1e-3
-    subdivide: int = 2
-    edge_tol: float | None = 0.05
-    edge_on_deg: float | None = 84.5
-    max_probes: int = 16
-    fallback_probes: int = 8
-    fallback_margin: float = 0.0
-    fallback_radius: float = 2.5
-    surface_lookback: float | None = 0.05
-    max_steps: int | None = None
-    bounds_margin: float = 0.05
-    engine: str = "per_ray"
-    wavefront_lanes: int = 1024
-    wavefront_steps: int = 4
+    hierarchy: str = setting("hiz", choices=HIERARCHIES)
+    coarse_factor: int = setting(16, lo=2)  # and a power of two (__post_init__)
+    hiz_skip_top: int = setting(1, lo=0)
+    thickness: float = setting(0.015, lo=0.0, hi=1.0, hi_open=True)
+    start_tol: float = setting(1e-3, lo=0.0, hi=1.0, hi_open=True)
+    subdivide: int = setting(2, choices=(1, 2))
+    edge_tol: float | None = setting(0.05, lo=0.0, lo_open=True)
+    edge_on_deg: float | None = setting(84.5, lo=0.0, hi=90.0, lo_open=True, hi_open=True)
+    max_probes: int = setting(16, lo=1)
+    fallback_probes: int = setting(8, lo=0)
+    fallback_margin: float = setting(0.0, lo=0.0, hi=1.0, hi_open=True)
+    fallback_radius: float = setting(2.5, lo=0.0, lo_open=True)
+    surface_lookback: float | None = setting(0.05, lo=0.0, hi=1.0, lo_open=True, hi_open=True)
+    max_steps: int | None = setting(None, lo=1)
+    bounds_margin: float = setting(0.05, lo=0.0)
+    engine: str = setting("per_ray", choices=ENGINES)
+    wavefront_lanes: int = setting(1024, lo=1)
+    wavefront_steps: int = setting(4, lo=1)
 
     def __post_init__(self):
-        for name in (
-            "coarse_factor",
-            "hiz_skip_top",
-            "subdivide",
-            "max_probes",
-            "fallback_probes",
-            "max_steps",
-            "wavefront_lanes",
-            "wavefront_steps",
-        ):
-            v = getattr(self, name)
-            if not (v is None and name == "max_steps") and (not isinstance(v, int) or isinstance(v, bool)):
-                raise ConfigError(f"TraceConfig.{name} must be an int, got {v!r}")
-        for name in (
-            "thickness",
-            "start_tol",
-            "bounds_margin",
-            "fallback_margin",
-            "fallback_radius",
-            "edge_tol",
-            "edge_on_deg",
-            "surface_lookback",
-        ):
-            v = getattr(self, name)
-            if v is None and name in ("edge_tol", "edge_on_deg", "surface_lookback"):
-                continue
-            if not isinstance(v, int | float) or isinstance(v, bool) or not math.isfinite(v):
-                raise ConfigError(f"TraceConfig.{name} must be a finite number, got {v!r}")
-        if self.engine not in ENGINES:
-            raise ConfigError(f"TraceConfig.engine must be one of {ENGINES}, got {self.engine!r}")
-        if self.wavefront_lanes < 1 or self.wavefront_steps < 1:
-            raise ConfigError(
-                "TraceConfig.wavefront_lanes and wavefront_steps must be ≥ 1, got "
-                f"{self.wavefront_lanes}, {self.wavefront_steps}"
-            )
-        if self.hierarchy not in HIERARCHIES:
-            raise ConfigError(f"TraceConfig.hierarchy must be one of {HIERARCHIES}, got {self.hierarchy!r}")
-        if self.coarse_factor < 2 or self.coarse_factor & (self.coarse_factor - 1):
+        """The declared ranges and choices (``_core.runtime.check_settings``), then what is not a range."""
+        check_settings(self)
+        if self.coarse_factor & (self.coarse_factor - 1):
             raise ConfigError(
                 f"TraceConfig.coarse_factor must be a power of two ≥ 2, got {self.coarse_factor}"
             )
-        if self.hiz_skip_top < 0:
-            raise ConfigError(f"TraceConfig.hiz_skip_top must be ≥ 0, got {self.hiz_skip_top}")
-        if not (0.0 <= self.thickness < 1.0):
-            raise ConfigError(f"TraceConfig.thickness must be in [0, 1), got {self.thickness}")
-        if not (0.0 <= self.start_tol < 1.0):
-            raise ConfigError(f"TraceConfig.start_tol must be in [0, 1), got {self.start_tol}")
-        if self.subdivide not in (1, 2):
-            raise ConfigError(f"TraceConfig.subdivide must be 1 or 2, got {self.subdivide}")
-        if self.edge_tol is not None and not self.edge_tol > 0:
-            raise ConfigError(f"TraceConfig.edge_tol must be positive or None, got {self.edge_tol}")
-        if self.edge_on_deg is not None and not 0 < self.edge_on_deg < 90:
-            raise ConfigError(f"TraceConfig.edge_on_deg must be in (0, 90) or None, got {self.edge_on_deg}")
-        if self.max_probes < 1:
-            raise ConfigError(f"TraceConfig.max_probes must be ≥ 1, got {self.max_probes}")
-        if self.fallback_probes < 0:
-            raise ConfigError(f"TraceConfig.fallback_probes must be ≥ 0, got {self.fallback_probes}")
-        if not 0.0 <= self.fallback_margin < 1.0:
-            raise ConfigError(f"TraceConfig.fallback_margin must be in [0, 1), got {self.fallback_margin}")
-        if self.surface_lookback is not None and not 0 < self.surface_lookback < 1:
-            raise ConfigError(
-                f"TraceConfig.surface_lookback must be in (0, 1) or None, got {self.surface_lookback}"
-            )
-        if not self.fallback_radius > 0:
-            raise ConfigError(f"TraceConfig.fallback_radius must be positive, got {self.fallback_radius}")
-        if not self.bounds_margin >= 0:
-            raise ConfigError(f"TraceConfig.bounds_margin must be ≥ 0, got {self.bounds_margin}")
-        if self.max_steps is not None and self.max_steps < 1:
-            raise ConfigError(f"TraceConfig.max_steps must be ≥ 1, got {self.max_steps}")
 
     @property
     def index_probes(self) -> int:
