@@ -7,7 +7,7 @@ import logging
 import os
 import sys
 
-from .._core import ConfigError, ProbeplaceError, RunFiles
+from .._core import ProbeplaceError, RunFiles
 from . import _options
 
 
@@ -236,20 +236,14 @@ def _checked_place_args(args: argparse.Namespace):
     ``placement.PlaceRequest`` fields of the flags and ``--height-band``'s region, checked by it."""
     from pathlib import Path
 
-    from .._core.runtime import check_writable_file
+    from .._core.runtime import check_writable_file, rekeyed
     from ..placement import PlaceRequest, get_method, parse_bytes
 
     region = (
         None if args.height_band is None else {"height": _number_list(args.height_band, 2, "--height-band")}
     )
     settings = {name: getattr(args, name) for name in PlaceRequest.settings(scalar=True)} | {"region": region}
-    try:
-        PlaceRequest(**settings)
-    except ConfigError as e:  # "budget must be ..." → "--budget: must be ..."
-        name = str(e).split(" ", 1)[0]
-        if name not in settings:
-            raise
-        raise ConfigError(f"{_options.flag(name)}: {str(e).removeprefix(name).lstrip(': ')}") from None
+    rekeyed(PlaceRequest, settings, {k: _options.flag(k) for k in settings})  # "--budget: must be ..."
     if args.memory_budget is not None:
         if settings["budget"] != "auto":
             raise ProbeplaceError("give --budget or --memory-budget, not both")

@@ -102,34 +102,32 @@ def add_parser(sub) -> None:
     e.set_defaults(func=run)
 
 
-def _add_trace_options(e) -> None:
-    """Every setting of the light-field tracer (``probes.TraceConfig`` but ``engine``, the runner's
-    ``lightfield`` group): ``--trace-<name>``, its type and default the field's (``--hierarchy`` is also
-    ``--trace-hierarchy``'s older name)."""
+def _trace_fields() -> tuple:
+    """The light-field tracer's settings the command takes: the fields of the runner's ``lightfield`` group
+    (``experiment.LightFieldStage``: every ``probes.TraceConfig`` field but ``engine``, which is
+    ``--trace-engine`` as the runner's ``eval.trace_engine``)."""
     import dataclasses
-    import typing
 
-    from ..probes import TraceConfig
+    from ..experiment import LightFieldStage
+
+    return dataclasses.fields(LightFieldStage)
+
+
+def _add_trace_options(e) -> None:
+    """``--trace-<name>`` for each of :func:`_trace_fields`, its type the field's, its default the
+    runner's (``--hierarchy`` is also ``--trace-hierarchy``'s older name)."""
     from ._options import flag, value_parser
 
-    hints = typing.get_type_hints(TraceConfig)
-    for f in dataclasses.fields(TraceConfig):
-        if f.name in TRACE_SET_ELSEWHERE:
-            continue
+    for f in _trace_fields():
         names = [flag(f.name, "trace_")] + (["--hierarchy"] if f.name == "hierarchy" else [])
         e.add_argument(
             *names,
             dest=f"trace_{f.name}",
-            type=value_parser(hints[f.name]),
+            type=value_parser(f.type),
             metavar=f.name.upper(),
             help=f"light-field tracer: probes.TraceConfig.{f.name} (docs/tracer.md) {{runner}}",
             action=_RunnerDefault,
         )
-
-
-#: ``TraceConfig`` fields with an option of their own: ``--trace-engine`` (the runner's
-#: ``eval.trace_engine``) and ``progress`` (``--quiet``).
-TRACE_SET_ELSEWHERE = ("engine", "progress")
 
 
 def _add_sample_options(e) -> None:
@@ -223,16 +221,8 @@ RUNNER_KEYS = {
 @functools.cache
 def runner_keys() -> Mapping:
     """:data:`RUNNER_KEYS` and the light-field tracer's options (``trace_<name>`` → ``lightfield.<name>``,
-    every ``probes.TraceConfig`` field but those of :data:`TRACE_SET_ELSEWHERE`). Read-only."""
-    import dataclasses
-
-    from ..probes import TraceConfig
-
-    trace = {
-        f"trace_{f.name}": f"lightfield.{f.name}"
-        for f in dataclasses.fields(TraceConfig)
-        if f.name not in TRACE_SET_ELSEWHERE
-    }
+    :func:`_trace_fields`). Read-only."""
+    trace = {f"trace_{f.name}": f"lightfield.{f.name}" for f in _trace_fields()}
     return MappingProxyType(RUNNER_KEYS | trace)
 
 
@@ -240,12 +230,12 @@ def runner_keys() -> Mapping:
 def runner_defaults() -> Mapping:
     """The default of every option of :func:`runner_keys`, read from the runner's defaults
     (``ExperimentConfig()``: its ``bake``, ``tracer``, ``eval`` and ``lightfield`` groups). Read-only."""
-    from ..experiment import ExperimentConfig, bake_values, eval_values, trace_values
+    from ..experiment import ExperimentConfig, bake_values, eval_values
 
     cfg = ExperimentConfig()
     ev, bake = eval_values(cfg), bake_values(cfg)
     out = {k: ev[k] for k in RUNNER_KEYS if k in ev}
-    out |= {f"trace_{k}": v for k, v in trace_values(cfg).items() if k not in TRACE_SET_ELSEWHERE}
+    out |= {f"trace_{f.name}": getattr(cfg.lightfield, f.name) for f in _trace_fields()}
     out |= {"radiance_res": bake["radiance_res"], "geometry_res": bake["geometry_res"]}
     out |= {"bake_noise_target": bake["noise_target"], "bake_max_spp": bake["max_spp"]}
     out |= {"bake_spp": cfg.bake.spp, "seed": cfg.seed, "trace_engine": cfg.eval.trace_engine}
@@ -317,14 +307,8 @@ def eval_config(args: argparse.Namespace):
     values = eval_values(ExperimentConfig())
     values |= {k: opt[k] for k in values if k in opt}
     try:
-        trace = TraceConfig(
-            engine=opt["trace_engine"],
-            **{
-                k.removeprefix("trace_"): v
-                for k, v in opt.items()
-                if k.startswith("trace_") and k != "trace_engine"
-            },
-        )
+        settings = {f.name: opt[f"trace_{f.name}"] for f in _trace_fields()}
+        trace = TraceConfig(engine=opt["trace_engine"], **settings)
         config = EvalConfig(**values, trace=trace, seed=opt["seed"])
     except ConfigError as e:
         raise _as_option(e) from None

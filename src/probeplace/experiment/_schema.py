@@ -16,7 +16,6 @@ in Hydra's ConfigStore.
 from __future__ import annotations
 
 import dataclasses
-import re
 import types
 import typing
 from collections.abc import Mapping
@@ -24,6 +23,7 @@ from dataclasses import dataclass, field
 from typing import Any
 
 from .._core import ConfigError, check_count, is_auto
+from .._core.runtime import rekeyed
 from ..evaluate import EvalConfig as _LibEvalConfig
 from ..placement import LIBRARY_ONLY as _LIBRARY_ONLY
 from ..placement import PlaceRequest as _PlaceRequest
@@ -286,20 +286,6 @@ def _library_values(stage: Any, lib: type) -> dict:
     return {k: v for k, v in dataclasses.asdict(stage).items() if k in names}
 
 
-def _rekeyed(lib: type, values: dict, keys: dict[str, str]) -> Any:
-    """``lib(**values)``; its ConfigError (``BakeConfig.n_sub must be ...`` or ``budget must be ...``)
-    re-keyed to the config key (``bake.n_sub: must be ...``), with ASCII comparisons as the runner's
-    messages always had."""
-    try:
-        return lib(**values)
-    except ConfigError as e:
-        m = re.match(rf"(?:{lib.__name__}\.)?(\w+):? (.*)", str(e), re.S)
-        if m is None or m.group(1) not in keys:
-            raise
-        rest = m.group(2) if m.group(2).startswith("must") else str(e)
-        raise ConfigError(f"{keys[m.group(1)]}: {rest.replace('≥', '>=')}") from None
-
-
 def place_values(cfg: ExperimentConfig) -> dict:
     """The ``placement.place`` settings (``PlaceRequest`` fields) a run places with: the ``placer``
     group's, the ``refiner`` group's name and the run's seed (its ``budget`` as given: the runner turns a
@@ -338,7 +324,7 @@ def eval_values(cfg: ExperimentConfig) -> dict:
 def bake_config(cfg: ExperimentConfig) -> _LibBakeConfig:
     """The library's bake settings of a run (``probes.BakeConfig``)."""
     values = bake_values(cfg)
-    return _rekeyed(_LibBakeConfig, values, {k: f"bake.{k}" for k in values})
+    return rekeyed(_LibBakeConfig, values, {k: f"bake.{k}" for k in values})
 
 
 def eval_config(cfg: ExperimentConfig) -> _LibEvalConfig:
@@ -349,8 +335,8 @@ def eval_config(cfg: ExperimentConfig) -> _LibEvalConfig:
     keys |= {k: f"tracer.{k}" for k in ("spp", "max_depth", *_TRACER_KEYS)}
     trace = trace_values(cfg)
     trace_keys = {k: f"lightfield.{k}" for k in trace} | {"engine": "eval.trace_engine"}
-    values["trace"] = _rekeyed(_LibTraceConfig, trace, trace_keys)
-    return _rekeyed(_LibEvalConfig, values, keys)
+    values["trace"] = rekeyed(_LibTraceConfig, trace, trace_keys)
+    return rekeyed(_LibEvalConfig, values, keys)
 
 
 def _check_bake_tracer(cfg: ExperimentConfig) -> None:
@@ -363,7 +349,7 @@ def _check_bake_tracer(cfg: ExperimentConfig) -> None:
         raise ConfigError(str(e).replace("bake.spp must", "bake.spp: must", 1)) from None
     spp = 1 if is_auto(cfg.bake.spp) else cfg.bake.spp
     values = {"width": 1, "height": 1, "spp": spp, "backend": cfg.bake.backend}
-    _rekeyed(_LibRenderConfig, values, {"spp": "bake.spp", "backend": "bake.backend"})
+    rekeyed(_LibRenderConfig, values, {"spp": "bake.spp", "backend": "bake.backend"})
 
 
 def _fail(key: str, what: str, got) -> None:
@@ -410,7 +396,7 @@ def _check_placer(cfg: ExperimentConfig) -> None:
         Region.from_config(p.region)  # its messages name the key under region: region.boxes[1][0] ...
     except ConfigError as e:
         raise ConfigError(f"placer.{e}") from None
-    _rekeyed(PlaceRequest, values, keys)
+    rekeyed(PlaceRequest, values, keys)
     if p.memory_budget is not None:
         if p.budget != "auto":
             _fail("placer.budget", "must be 'auto' when placer.memory_budget is given", p.budget)

@@ -25,7 +25,7 @@ _LAZY = {
     **dict.fromkeys(("MAX_BYTES_ENV", "check_memory", "memory_limit_bytes"), "_memory"),
     **dict.fromkeys(("progress_bar", "set_progress"), "_progress"),
     "parse_bytes": "_sizes",
-    **dict.fromkeys(("check_settings", "setting"), "_settings"),
+    **dict.fromkeys(("check_settings", "rekeyed", "setting"), "_settings"),
 }
 
 if TYPE_CHECKING:  # what static checkers and IDEs see; __getattr__ gives the same at run time
@@ -41,6 +41,7 @@ if TYPE_CHECKING:  # what static checkers and IDEs see; __getattr__ gives the sa
     from ._progress import progress_bar as progress_bar
     from ._progress import set_progress as set_progress
     from ._settings import check_settings as check_settings
+    from ._settings import rekeyed as rekeyed
     from ._settings import setting as setting
     from ._sizes import parse_bytes as parse_bytes
 

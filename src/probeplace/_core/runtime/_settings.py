@@ -8,7 +8,9 @@ Checks that relate fields or are not a range (a power of two) stay in the class'
 from __future__ import annotations
 
 import dataclasses
+import functools
 import math
+import re
 import types
 import typing
 from typing import Any
@@ -47,6 +49,22 @@ def _inside(v: int | float, rule: dict) -> bool:
     return above and below
 
 
+@functools.cache
+def _declared(cls: type) -> tuple[tuple[str, bool, type, dict], ...]:
+    """(field, None allowed, scalar type, rule) of each field of ``cls`` declared with :func:`setting`:
+    read once per class (type hints are slow to resolve; a config is built often)."""
+    hints = typing.get_type_hints(cls)
+    out = []
+    for f in dataclasses.fields(cls):
+        rule = f.metadata.get("setting")
+        if rule is None:
+            continue
+        tp = hints[f.name]
+        args = typing.get_args(tp) if isinstance(tp, types.UnionType) else (tp,)
+        out.append((f.name, type(None) in args, next(a for a in args if a is not type(None)), rule))
+    return tuple(out)
+
+
 def check_settings(obj: Any) -> None:
     """Check each field of dataclass ``obj`` declared with :func:`setting` (the first failure, as
     ``<Class>.<field> must be ..., got <value>``).
@@ -55,17 +73,11 @@ def check_settings(obj: Any) -> None:
         ConfigError: a value of the wrong type, outside its range or not one of its choices.
     """
     cls = type(obj).__name__
-    hints = typing.get_type_hints(type(obj))
-    for f in dataclasses.fields(obj):
-        rule = f.metadata.get("setting")
-        if rule is None:
-            continue
-        v, tp = getattr(obj, f.name), hints[f.name]
-        args = typing.get_args(tp) if isinstance(tp, types.UnionType) else (tp,)
-        optional, kind = type(None) in args, next(a for a in args if a is not type(None))
+    for name, optional, kind, rule in _declared(type(obj)):
+        v = getattr(obj, name)
         if v is None and optional:
             continue
-        where, none = f"{cls}.{f.name} must be", " or None" if optional else ""
+        where, none = f"{cls}.{name} must be", " or None" if optional else ""
         if kind is int and (not isinstance(v, int) or isinstance(v, bool)):
             raise ConfigError(f"{where} an int{none}, got {v!r}")
         if kind is float and (not isinstance(v, int | float) or isinstance(v, bool) or not math.isfinite(v)):
@@ -74,3 +86,18 @@ def check_settings(obj: Any) -> None:
             raise ConfigError(f"{where} one of {rule['choices']}, got {v!r}")
         if (rule["lo"] is not None or rule["hi"] is not None) and not _inside(v, rule):
             raise ConfigError(f"{where} {_range_text(rule)}{none}, got {v}")
+
+
+def rekeyed(lib: type, values: dict, keys: dict[str, str]) -> Any:
+    """``lib(**values)``; its ConfigError (``BakeConfig.n_sub must be ...`` or ``budget must be ...``)
+    re-keyed to the name the user wrote (``keys``: field → ``bake.n_sub`` for the runner, ``--budget`` for
+    ``probeplace place``): ``bake.n_sub: must be ...``, comparisons in ASCII as the runner's messages always
+    had. An error about a field not in ``keys`` (or in another form) is raised as it is."""
+    try:
+        return lib(**values)
+    except ConfigError as e:
+        m = re.match(rf"(?:{lib.__name__}\.)?(\w+):? (.*)", str(e), re.S)
+        if m is None or m.group(1) not in keys:
+            raise
+        rest = m.group(2) if m.group(2).startswith("must") else str(e)
+        raise ConfigError(f"{keys[m.group(1)]}: {rest.replace('≥', '>=')}") from None
