@@ -14,12 +14,18 @@ from __future__ import annotations
 import dataclasses
 import json
 import math
+import pickle
 import re
+import shutil
+import subprocess
+import sys
+import textwrap
 from pathlib import Path
 
 import numpy as np
 import pytest
 
+import probeplace
 from probeplace._core import json_number, scene_box
 from probeplace.evaluate import (
     EVAL_COMPONENTS,
@@ -287,3 +293,54 @@ def test_a_result_needs_typed_scores():
         EvalResult(scores={}, images={})
     with pytest.raises(TypeError, match="images are required"):
         EvalResult(scores=EvalMetrics())
+
+
+ARCH = Path(__file__).resolve().parents[2] / "docs" / "architecture.md"
+
+
+def test_the_documented_metric_is_one_edit(steps, tmp_path):
+    """docs/architecture.md's "adding a metric" field, pasted into ``ComponentScores`` in a copy of the
+    package and nothing else, is measured by ``score`` on every image component and written to metrics.json
+    under ``<field>_<component>``; its value is checked against the result's own images (float32, hence the
+    tolerance) and it reads back through ``from_json``. The steps' results travel to the copy pickled."""
+    (block,) = [
+        b
+        for b in re.findall(r"```python\n(.*?)```", ARCH.read_text(encoding="utf-8"), re.S)
+        if "measured(" in b
+    ]
+    field_src = "\n".join(line for line in block.splitlines() if not line.startswith("#"))
+    name = re.search(r"^\s+(\w+):", field_src, re.M).group(1)
+    copy = tmp_path / "probeplace"
+    shutil.copytree(
+        Path(probeplace.__file__).parent, copy, ignore=shutil.ignore_patterns("__pycache__", "_vendor")
+    )
+    metrics_py = copy / "evaluate" / "_metrics.py"
+    text = metrics_py.read_text(encoding="utf-8")
+    anchor = "\n\n@dataclasses.dataclass(frozen=True)\nclass IndirectScores(ComponentScores):"
+    assert text.count(anchor) == 1
+    metrics_py.write_text(text.replace(anchor, "\n" + field_src.rstrip() + "\n" + anchor), encoding="utf-8")
+    (tmp_path / "steps.pkl").write_bytes(pickle.dumps(steps))
+    check = textwrap.dedent(
+        f"""
+        import pickle
+        import numpy as np
+        import probeplace
+        assert probeplace.__file__.startswith({str(tmp_path)!r}), probeplace.__file__
+        from probeplace.evaluate import EVAL_COMPONENTS, METRIC_KEYS, EvalMetrics, score
+        steps = pickle.loads(open({str(tmp_path / "steps.pkl")!r}, "rb").read())
+        result = score(*steps)
+        m = result.metrics
+        for c in EVAL_COMPONENTS:
+            key = {name!r} + "_" + c
+            assert key in METRIC_KEYS and key in m, key
+            d = np.asarray(result.images["probe_" + c], np.float64) - result.images["ref_" + c]
+            want = float(np.sqrt(np.mean(d * d, axis=-1).max()))
+            assert want > 0 and abs(m[key] - want) <= 1e-3 * want, (key, m[key], want)
+        assert list(m)[: len(m) - 3] == [k for k in METRIC_KEYS if not k.startswith({name!r})]
+        assert EvalMetrics.from_json(m) == result.scores
+        print("ok")
+        """
+    )
+    env = {"PYTHONPATH": str(tmp_path), "PATH": "/usr/bin:/bin", "JAX_PLATFORMS": "cpu"}
+    done = subprocess.run([sys.executable, "-c", check], capture_output=True, text=True, env=env, timeout=300)
+    assert done.stdout.strip() == "ok", done.stderr[-3000:]

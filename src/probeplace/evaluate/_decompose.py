@@ -52,6 +52,17 @@ _LUMA = np.array([0.2126, 0.7152, 0.0722])  # Rec. 709, as _core.luminance
 LEAK_SIGMAS = 4.0
 
 
+def mean_sq_error(a: np.ndarray, b: np.ndarray) -> float:
+    """MSE of ``a`` against ``b`` over every element, in float64."""
+    return float(np.mean((np.asarray(a, np.float64) - np.asarray(b, np.float64)) ** 2))
+
+
+def pixel_sq_error(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """Per-pixel squared error of two (h, w, 3) images, mean over RGB, flat: the bootstrap's unit."""
+    d = np.asarray(a, np.float64) - np.asarray(b, np.float64)
+    return np.mean(d * d, axis=-1).reshape(-1)
+
+
 def pixel_means(v: np.ndarray, n_pixels: int, spp: int) -> np.ndarray:
     """(n_pixels·spp, …) pixel-major samples → (n_pixels, …) per-pixel means."""
     v = np.asarray(v, np.float64)

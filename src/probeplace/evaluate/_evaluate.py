@@ -68,16 +68,20 @@ from ._decompose import (
     glossy_terms,
     hit_agreement,
     light_leak,
+    mean_sq_error,
     pixel_means,
+    pixel_sq_error,
     relative_mse,
 )
 from ._metrics import (
     EVAL_COMPONENTS,
+    ComponentImages,
     ComponentScores,
     DiffuseScores,
     EvalMetrics,
     GlossyScores,
     RunSettings,
+    measure_record,
     metric_key,
 )
 from ._samples import COUNT_OF, CountChoice, crn_for_target, reference_for_target, samples_metrics
@@ -171,16 +175,6 @@ def memory_bytes(lf: LightFieldProbes, subdivide: int) -> dict:
     }
 
 
-def _mse(a: np.ndarray, b: np.ndarray) -> float:
-    return float(np.mean((np.asarray(a, np.float64) - np.asarray(b, np.float64)) ** 2))
-
-
-def _sq_px(a: np.ndarray, b: np.ndarray) -> np.ndarray:
-    """Per-pixel squared error, mean over RGB (the bootstrap's unit)."""
-    d = np.asarray(a, np.float64) - np.asarray(b, np.float64)
-    return np.mean(d * d, axis=-1).reshape(-1)
-
-
 def evaluate(
     scene: Scene,
     lf: LightFieldProbes,
@@ -259,28 +253,29 @@ def _light_leak(ref_img: dict, ref_var: dict, probe_d, hit_px, sigmas: float) ->
 def _diffuse_scores(config: EvalConfig, ref_img: dict, ref_var: dict, probe_d, hit_px) -> DiffuseScores:
     """The diffuse indirect image against the render's: MSE, noise floor, black image, relative MSE,
     interval, light leak."""
-    ref_d = ref_img["diffuse_indirect"]
-    return DiffuseScores(
-        mse=_mse(probe_d, ref_d),
+    return measure_record(
+        DiffuseScores,
+        _images("diffuse_indirect", probe_d, ref_img["diffuse_indirect"], config),
         noise_floor=float(np.mean(ref_var["diffuse_indirect"])),
-        # A black image (no indirect light at all) against the same references: a method above this adds
-        # more wrong light (leaks, self-hits) than it recovers.
-        mse_black=_mse(np.zeros_like(ref_d), ref_d),
-        relmse=relative_mse(probe_d, ref_d, eps=config.relmse_eps),
-        relmse_black=relative_mse(np.zeros_like(probe_d), ref_d, eps=config.relmse_eps),
-        ci95_mse=_ci(config, _sq_px(probe_d, ref_d)),
         **_light_leak(ref_img, ref_var, probe_d, hit_px, config.leak_sigmas),
     )
 
 
 def _full_scores(config: EvalConfig, ref_img: dict, ref_var: dict, probe_full) -> ComponentScores:
     """The full image against the render's."""
-    return ComponentScores(
-        mse=_mse(probe_full, ref_img["full"]),
+    return measure_record(
+        ComponentScores,
+        _images("full", probe_full, ref_img["full"], config),
         # Emission and direct are shared by both images, so only the reference's indirect noise remains.
         noise_floor=float(np.mean(ref_var["diffuse_indirect"] + ref_var["glossy_indirect"])),
-        relmse=relative_mse(probe_full, ref_img["full"], eps=config.relmse_eps),
-        ci95_mse=_ci(config, _sq_px(probe_full, ref_img["full"])),
+    )
+
+
+def _images(component: str, probe, reference, config: EvalConfig, sq_px=None) -> ComponentImages:
+    """A component's images for its measured figures; ``sq_px`` defaults to the images' per-pixel error."""
+    sq_px = pixel_sq_error(probe, reference) if sq_px is None else sq_px
+    return ComponentImages(
+        component, np.asarray(probe, np.float64), np.asarray(reference, np.float64), sq_px, config
     )
 
 
@@ -306,20 +301,19 @@ def _glossy_scores(scene, config: EvalConfig, prim, crn, shading, perfect, imgs,
         shading.t, perfect.t_exact, st, rtol=config.agreement_rtol, atol=1e-4 * float(np.linalg.norm(hi - lo))
     )
     n_exact = int(np.sum(gl & np.isfinite(perfect.t_exact)))
-    rel = lambda a, b: relative_mse(a, b, eps=config.relmse_eps)
     floor = float(np.mean((prim.w_glossy**2 * crn.var_of_mean).reshape(H * W, S, 3).sum(axis=1) / S**2))
-    return GlossyScores(
-        mse=_mse(probe_g, crn_ref_g),
+    return measure_record(
+        GlossyScores,
+        _images("glossy_indirect", probe_g, crn_ref_g, config, sq_px=terms["sq_px"]),
         noise_floor=floor,
-        mse_no_crn=_mse(probe_g, ref_img["glossy_indirect"]),
-        mse_black=_mse(np.zeros_like(crn_ref_g), crn_ref_g),
+        mse_no_crn=mean_sq_error(probe_g, ref_img["glossy_indirect"]),
         glossy_rays=n_gl,
         unresolved_share=float(np.mean(st[gl] == TraceStatus.UNRESOLVED)) if n_gl else 0.0,
         **_seen_shares(st, shading.origin_seen),
         mse_perfect_trace=terms["mse_perfect_trace"],
         # What even exact probes storing view-independent radiance miss: the specular lobe of the surface a
         # glossy ray hits, toward the viewer (the CRN reference without that lobe, _steps.py).
-        mse_view_dependence=_mse(view_indep_g, crn_ref_g),
+        mse_view_dependence=mean_sq_error(view_indep_g, crn_ref_g),
         mse_trace_share=terms["trace_share"],
         trace_excess=terms["trace_excess"],
         mse_by_status=terms["by_status"],
@@ -331,10 +325,7 @@ def _glossy_scores(scene, config: EvalConfig, prim, crn, shading, perfect, imgs,
         glossy_hit_agreement_rays=n_agree,
         perfect_trace_fallbacks=int(np.sum(perfect.fallback)),
         perfect_trace_fallback_share=float(np.sum(perfect.fallback) / n_exact) if n_exact else 0.0,
-        relmse=rel(probe_g, crn_ref_g),
-        relmse_perfect_trace=rel(perfect_g, crn_ref_g),
-        relmse_black=rel(np.zeros_like(crn_ref_g), crn_ref_g),
-        ci95_mse=_ci(config, terms["sq_px"]),
+        relmse_perfect_trace=relative_mse(perfect_g, crn_ref_g, eps=config.relmse_eps),
         ci95_mse_perfect_trace=_ci(config, terms["sq_px_perfect"]),
         ci95_mse_trace_share=_ci(config, terms["sq_px"] - terms["sq_px_perfect"]),
     )

@@ -10,8 +10,8 @@ record per image component (:data:`EVAL_COMPONENTS`: :class:`DiffuseScores`, :cl
 ``tests/evaluate/test_metrics_keys.py`` holds the list to :data:`METRIC_KEYS`):
 
 * a *family* figure (:data:`FAMILIES`: ``mse``, ``noise_floor``, ``mse_black``, ``relmse``,
-  ``relmse_black``, ``ci95_mse``) of a component record is ``<family>_<component>``: ``glossy_indirect.mse``
-  is ``mse_glossy_indirect``;
+  ``relmse_black``, ``ci95_mse``) or a :func:`measured` figure of a component record is
+  ``<name>_<component>``: ``glossy_indirect.mse`` is ``mse_glossy_indirect``;
 * a figure of one of the glossy error's parts (the perfect trace, the trace's share, ...) declares its
   family and image (:func:`_part`): ``GlossyScores.mse_perfect_trace`` is ``mse_glossy_perfect_trace``;
 * every other figure is named by its field: ``DiffuseScores.light_leak_pixels`` is ``light_leak_pixels``.
@@ -20,8 +20,12 @@ Records (:class:`RunSettings`, the component records) are flattened into the top
 *group* (a field holding an object with ``to_json``: :class:`SampleCounts`) is one nested dict under its
 field's name. :data:`_JSON_ORDER` keeps the order ``score`` wrote its keys in before these records existed,
 so that a run's ``metrics.json`` stays byte-identical; a field it does not list follows the listed ones in
-declaration order. A new metric is one field here, its value in ``score`` and its row in docs/evaluate.md
-(docs/architecture.md, "Evaluation metrics").
+declaration order.
+
+**Measured figures**: a field declared ``measured(<how>)`` is computed by :func:`measure_record` from the
+component's :class:`ComponentImages` on every component that has it (``mse``, ``relmse``, ``ci95_mse``,
+``mse_black``, ``relmse_black``); ``score`` gives the others. A new metric of a component's images is one
+such field here and its row in docs/evaluate.md (docs/architecture.md, "Adding a metric").
 """
 
 from __future__ import annotations
@@ -31,8 +35,14 @@ import dataclasses
 import functools
 import types
 import typing
-from collections.abc import Mapping
+from collections.abc import Callable, Mapping
 from dataclasses import field
+from typing import Any
+
+import numpy as np
+
+from ._config import EvalConfig
+from ._decompose import bootstrap_ci, mean_sq_error, relative_mse
 
 #: The figures every component record may have, each ``<family>_<component>`` in metrics.json.
 FAMILIES = ("mse", "noise_floor", "mse_black", "relmse", "relmse_black", "ci95_mse")
@@ -50,6 +60,40 @@ def _part(family: str, image: str) -> dict:
 
 
 Interval = tuple[float, float]
+
+
+@dataclasses.dataclass(frozen=True)
+class ComponentImages:
+    """What a measured figure of one image component is computed from (:func:`measured`): the component's
+    name, its probe image and reference ((h, w, 3) float64; the glossy image's reference is the CRN one),
+    the per-pixel squared error (flat, mean over RGB; the glossy image's from its samples' errors,
+    ``_decompose.glossy_terms``) and the evaluation's config."""
+
+    component: str
+    probe: np.ndarray
+    reference: np.ndarray
+    sq_px: np.ndarray
+    config: EvalConfig
+
+
+def measured(measure: Callable[[ComponentImages], Any]) -> Any:
+    """A field of a component record whose value is ``measure(images)`` (:class:`ComponentImages`), set by
+    :func:`measure_record` for every component that has the field; its key is ``<field>_<component>``
+    (:func:`metric_key`), like a family's. A new metric of the images is this one field (docs/architecture.md,
+    "Adding a metric")."""
+    return field(default=None, metadata={"measure": measure})
+
+
+def measure_record(cls: type, images: ComponentImages, **given) -> Any:
+    """Component record ``cls``: its :func:`measured` fields measured on ``images``, the others ``given``."""
+    values = {
+        f.name: f.metadata["measure"](images) for f in dataclasses.fields(cls) if "measure" in f.metadata
+    }
+    return cls(**values, **given)
+
+
+def _black(m: ComponentImages) -> np.ndarray:
+    return np.zeros_like(m.reference)
 
 
 @dataclasses.dataclass(frozen=True)
@@ -80,18 +124,24 @@ class ComponentScores:
     """One image component's probe image against its reference (the full image's record): MSE, its 95 %
     bootstrap interval over pixels, relative MSE and the reference's noise floor (docs/evaluate.md)."""
 
-    mse: float | None = None
-    noise_floor: float | None = None
-    relmse: float | None = None
-    ci95_mse: Interval | None = None
+    mse: float | None = measured(lambda m: mean_sq_error(m.probe, m.reference))
+    noise_floor: float | None = None  # the reference's own noise, measured per component by ``score``
+    relmse: float | None = measured(lambda m: relative_mse(m.probe, m.reference, eps=m.config.relmse_eps))
+    ci95_mse: tuple[float, float] | None = measured(
+        lambda m: tuple(bootstrap_ci(m.sq_px, n_resamples=m.config.bootstrap_resamples, seed=0))
+    )
 
 
 @dataclasses.dataclass(frozen=True)
 class IndirectScores(ComponentScores):
     """An indirect component: also a black image's MSE and relative MSE against the same reference."""
 
-    mse_black: float | None = None
-    relmse_black: float | None = None
+    # A black image (no indirect light at all) against the same reference: a method above it adds more
+    # wrong light (leaks, self-hits) than it recovers.
+    mse_black: float | None = measured(lambda m: mean_sq_error(_black(m), m.reference))
+    relmse_black: float | None = measured(
+        lambda m: relative_mse(_black(m), m.reference, eps=m.config.relmse_eps)
+    )
 
 
 @dataclasses.dataclass(frozen=True)
@@ -257,7 +307,7 @@ def _walk(cls, path: tuple = ()):
             yield from _walk(t, (*path, f.name))
         elif "key" in f.metadata:
             yield (*path, f.name), f.metadata["key"]
-        elif issubclass(cls, ComponentScores) and f.name in FAMILIES:
+        elif issubclass(cls, ComponentScores) and (f.name in FAMILIES or "measure" in f.metadata):
             yield (*path, f.name), metric_key(f.name, path[-1])
         else:
             yield (*path, f.name), f.name
