@@ -63,7 +63,7 @@ def _eval(tmp_path, *extra) -> list[str]:
     ("extra", "needles"),
     [
         (["--view", "nosuchview"], ["--view", "nosuchview"]),
-        (["--width", "0"], ["--width: EvalConfig.width must be a positive int, got 0"]),
+        (["--width", "0"], ["--width: EvalConfig.width must be ≥ 1, got 0"]),
         (["--spp", "0"], ["--spp: EvalConfig.spp must be a positive int or 'auto', got 0"]),
         (["--glossy-spp", "-1"], ["--glossy-spp"]),
         (["--width", "100000000", "--height", "100000000"], ["--width × --height", "bytes"]),
@@ -198,9 +198,8 @@ def test_command_line_refusal_comes_before_any_jax_work_and_is_one_line(tmp_path
     proc = _python(*argv, env={"JAX_LOG_COMPILES": "1"})
     _, err = proc.communicate(timeout=120)
     assert proc.returncode == 2, err
-    assert err.strip().splitlines() == [
-        "probeplace: error: --width: EvalConfig.width must be a positive int, got 0"
-    ], err
+    want = "probeplace: error: --width: EvalConfig.width must be ≥ 1, got 0"
+    assert err.strip().splitlines() == [want], err
 
 
 def test_compile_log_reaches_stderr_in_a_child():

@@ -113,7 +113,7 @@ def test_the_run_gets_the_runners_settings_and_keys(tmp_path, capsys, no_slow_wo
     ("extra", "needle"),
     [
         (["--trace-engine", "fast"], "--trace-engine: TraceConfig.engine must be one of"),
-        (["--timing-repeats", "0"], "--timing-repeats: EvalConfig.timing_repeats must be a positive int"),
+        (["--timing-repeats", "0"], "--timing-repeats: EvalConfig.timing_repeats must be ≥ 1, got 0"),
         (["--glossy-ref-spp", "1"], "--glossy-ref-spp: EvalConfig.glossy_ref_spp must be an int ≥ 2"),
         (["--bake-spp", "0"], "--bake-spp must be a positive int or 'auto', got 0"),
         # issue 33, samples from a noise target
@@ -121,13 +121,13 @@ def test_the_run_gets_the_runners_settings_and_keys(tmp_path, capsys, no_slow_wo
         (["--glossy-ref-spp", "1.5"], "--glossy-ref-spp: EvalConfig.glossy_ref_spp must be an int ≥ 2 or"),
         (
             ["--noise-target", "0"],
-            "--noise-target: EvalConfig.noise_target must be a number in (0, 1), got 0",
+            "--noise-target: EvalConfig.noise_target must be in (0, 1), got 0",
         ),
-        (["--noise-target", "1"], "--noise-target: EvalConfig.noise_target must be a number in (0, 1)"),
+        (["--noise-target", "1"], "--noise-target: EvalConfig.noise_target must be in (0, 1)"),
         (["--spp", "auto", "--max-spp", "4"], "--max-spp: EvalConfig.max_spp must be ≥ pilot_spp (8)"),
         (["--bake-spp", "autox"], "--bake-spp must be a positive int or 'auto', got 'autox'"),
-        (["--bake-noise-target", "1.5"], "--bake-noise-target: BakeConfig.noise_target must be a number in"),
-        (["--bake-max-spp", "0"], "--bake-max-spp: BakeConfig.max_spp must be an int ≥ 1, got 0"),
+        (["--bake-noise-target", "1.5"], "--bake-noise-target: BakeConfig.noise_target must be in (0, 1)"),
+        (["--bake-max-spp", "0"], "--bake-max-spp: BakeConfig.max_spp must be ≥ 1, got 0"),
     ],
     ids=[
         "trace-engine",

@@ -189,9 +189,9 @@ def test_the_samples_group_is_json_without_infinities():
     [
         ({"spp": "autox"}, r"^EvalConfig\.spp must be a positive int or 'auto', got 'autox'$"),
         ({"glossy_ref_spp": "Auto"}, r"^EvalConfig\.glossy_ref_spp must be an int ≥ 2 or 'auto'"),
-        ({"noise_target": 0.0}, r"^EvalConfig\.noise_target must be a number in \(0, 1\), got 0\.0$"),
-        ({"noise_target": 1.0}, r"^EvalConfig\.noise_target must be a number in \(0, 1\)"),
-        ({"pilot_spp": 1}, r"^EvalConfig\.pilot_spp must be an int ≥ 2, got 1$"),
+        ({"noise_target": 0.0}, r"^EvalConfig\.noise_target must be in \(0, 1\), got 0\.0$"),
+        ({"noise_target": 1.0}, r"^EvalConfig\.noise_target must be in \(0, 1\)"),
+        ({"pilot_spp": 1}, r"^EvalConfig\.pilot_spp must be ≥ 2, got 1$"),
         ({"max_spp": 4}, r"^EvalConfig\.max_spp must be ≥ pilot_spp \(8\)"),
     ],
 )

@@ -395,7 +395,7 @@ def test_cli_refuses_a_baked_file_of_another_depth(tmp_path, capsys, getkey):
     assert not (tmp_path / "ev").exists()
     # inputs are checked before anything is loaded or baked
     assert main([*argv, "--max-depth", "2"]) == 2
-    assert "max_depth must be an int ≥ 3" in capsys.readouterr().err
+    assert "EvalConfig.max_depth must be ≥ 3, got 2" in capsys.readouterr().err
     assert main([*argv, "--save-baked", str(tmp_path / "x.npz")]) == 2
     assert "already baked" in capsys.readouterr().err
 

@@ -122,9 +122,9 @@ def test_fixed_counts_and_refusals(setup):
 @pytest.mark.parametrize(
     ("kw", "match"),
     [
-        ({"noise_target": 0.0}, r"^BakeConfig\.noise_target must be a number in \(0, 1\), got 0\.0$"),
-        ({"noise_target": 1.5}, r"^BakeConfig\.noise_target must be a number in \(0, 1\)"),
-        ({"pilot_spp": 0}, r"^BakeConfig\.pilot_spp must be an int ≥ 1, got 0$"),
+        ({"noise_target": 0.0}, r"^BakeConfig\.noise_target must be in \(0, 1\), got 0\.0$"),
+        ({"noise_target": 1.5}, r"^BakeConfig\.noise_target must be in \(0, 1\)"),
+        ({"pilot_spp": 0}, r"^BakeConfig\.pilot_spp must be ≥ 1, got 0$"),
         ({"pilot_spp": 4, "max_spp": 2}, r"^BakeConfig\.max_spp must be ≥ pilot_spp \(4\)"),
     ],
 )

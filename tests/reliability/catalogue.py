@@ -804,7 +804,7 @@ CATALOGUE: list[Entry] = [
         "EvalConfig(spp='auto', pilot_spp=1) (the floor is a sample variance: 2 paths at least)",
         _cfg("probeplace.evaluate.EvalConfig", spp="auto", pilot_spp=1),
         ConfigError,
-        r"EvalConfig.pilot_spp must be an int ≥ 2, got 1",
+        r"EvalConfig.pilot_spp must be ≥ 2, got 1",
     ),
     Entry(
         "bake-noise-target-negative",
@@ -812,7 +812,7 @@ CATALOGUE: list[Entry] = [
         "BakeConfig(noise_target=-0.1)",
         _cfg("probeplace.probes.BakeConfig", noise_target=-0.1),
         ConfigError,
-        r"BakeConfig.noise_target must be a number in \(0, 1\), got -0.1",
+        r"BakeConfig.noise_target must be in \(0, 1\), got -0.1",
     ),
     Entry(
         "bake-res-not-pow2",
@@ -828,7 +828,7 @@ CATALOGUE: list[Entry] = [
         "BakeConfig(n_sub=0)",
         _cfg("probeplace.probes.BakeConfig", n_sub=0),
         ConfigError,
-        r"BakeConfig.n_sub must be a positive int, got 0",
+        r"BakeConfig.n_sub must be ≥ 1, got 0",
     ),
     Entry(
         "bake-quality-nan",
@@ -836,7 +836,7 @@ CATALOGUE: list[Entry] = [
         "BakeConfig(quality=nan)",
         _cfg("probeplace.probes.BakeConfig", quality=float("nan")),
         ConfigError,
-        r"BakeConfig.quality must be positive, got nan",
+        r"BakeConfig.quality must be a finite number, got nan",
     ),
     Entry(
         "trace-hierarchy",
@@ -978,7 +978,7 @@ CATALOGUE: list[Entry] = [
         "`evaluate --width 0`",
         _cli(*_EVAL, "--probes", "<dir>/p.json", "--out", "<dir>/ev", "--width", "0", files=_ONE_PROBE),
         ConfigError,
-        r"--width: EvalConfig.width must be a positive int, got 0",
+        r"--width: EvalConfig.width must be ≥ 1, got 0",
     ),
     Entry(
         "cli-eval-spp-zero",
@@ -1004,7 +1004,7 @@ CATALOGUE: list[Entry] = [
             *_EVAL, "--probes", "<dir>/p.json", "--out", "<dir>/ev", "--noise-target", "1", files=_ONE_PROBE
         ),
         ConfigError,
-        r"--noise-target: EvalConfig.noise_target must be a number in \(0, 1\), got 1\.0",
+        r"--noise-target: EvalConfig.noise_target must be in \(0, 1\), got 1\.0",
     ),
     Entry(
         "cli-eval-bake-spp-autox",
@@ -1102,7 +1102,7 @@ CATALOGUE: list[Entry] = [
         "runner `bake.spp=auto bake.noise_target=0`",
         _runner({"bake": {"spp": "auto", "noise_target": 0.0}}),
         ConfigError,
-        r"^bake\.noise_target: must be a number in \(0, 1\), got 0\.0",
+        r"^bake\.noise_target: must be in \(0, 1\), got 0\.0",
     ),
     Entry(
         "runner-bake-spp-autox",

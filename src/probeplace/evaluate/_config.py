@@ -3,9 +3,9 @@
 from __future__ import annotations
 
 import dataclasses
-import math
 
 from .._core import ConfigError, check_count, check_target, is_auto
+from .._core.runtime import check_settings, setting
 from ..probes import DEFAULT_GLOSSY_FILTER, GLOSSY_FILTERS, SHADINGS, TraceConfig
 from ._decompose import LEAK_SIGMAS
 
@@ -58,37 +58,37 @@ class EvalConfig:
             is the ``caster`` argument either way.
     """
 
-    width: int = 64
-    height: int = 64
-    spp: int | str = 64
-    glossy_spp: int = 8
-    glossy_ref_spp: int | str = 4
-    noise_target: float = 0.05
-    pilot_spp: int = 8
-    max_spp: int = 1024
-    max_depth: int = 8
-    shading: str = "lightfield"
+    width: int = setting(64, lo=1)
+    height: int = setting(64, lo=1)
+    spp: int | str = 64  # an int ≥ 1 or "auto" (__post_init__)
+    glossy_spp: int = setting(8, lo=1)
+    glossy_ref_spp: int | str = 4  # an int ≥ 2 or "auto" (__post_init__)
+    noise_target: float = setting(0.05, lo=0.0, hi=1.0, lo_open=True, hi_open=True)
+    pilot_spp: int = setting(8, lo=2)
+    max_spp: int = setting(1024, lo=2)  # and ≥ pilot_spp (__post_init__)
+    max_depth: int = setting(8, lo=3)
+    shading: str = setting("lightfield", choices=SHADINGS)
     trace: TraceConfig = dataclasses.field(default_factory=TraceConfig)
-    glossy_filter: str = DEFAULT_GLOSSY_FILTER
-    glossy_lod_bias: float = 0.0
-    perfect_trace_margin: float = 0.05
-    agreement_rtol: float = 0.02
-    bootstrap_resamples: int = 1000
-    relmse_eps: float = 0.01
+    glossy_filter: str = setting(DEFAULT_GLOSSY_FILTER, choices=GLOSSY_FILTERS)
+    glossy_lod_bias: float = setting(0.0)
+    perfect_trace_margin: float = setting(0.05, lo=0.0, hi=1.0, hi_open=True)
+    agreement_rtol: float = setting(0.02, lo=0.0)
+    bootstrap_resamples: int = setting(1000, lo=1)
+    relmse_eps: float = setting(0.01, lo=0.0, lo_open=True)
     seed: int = 0
-    normal_bias: float = 0.2
-    leak_sigmas: float = LEAK_SIGMAS
-    timing_repeats: int = 3
+    normal_bias: float = setting(0.2, lo=0.0)
+    leak_sigmas: float = setting(LEAK_SIGMAS, lo=0.0, lo_open=True)
+    timing_repeats: int = setting(3, lo=1)
     progress: bool = False
-    backend: str = "jax"
+    backend: str = "jax"  # one of render.BACKEND_CHOICES, "auto" resolved (__post_init__)
 
     def __post_init__(self):
-        for name in ("width", "height", "glossy_spp", "timing_repeats", "bootstrap_resamples"):
-            v = getattr(self, name)
-            if not isinstance(v, int) or isinstance(v, bool) or v < 1:
-                raise ConfigError(f"EvalConfig.{name} must be a positive int, got {v!r}")
+        """The declared ranges and choices (``_core.runtime.check_settings``), then the counts that may be
+        ``"auto"``, the cap against the pilot count, the tracer settings and the backend."""
+        check_settings(self)
         check_count(self.spp, "EvalConfig.spp")
         check_count(self.glossy_ref_spp, "EvalConfig.glossy_ref_spp", minimum=2)
+        # max_spp ≥ pilot_spp (the ranges it checks too are the declared ones)
         check_target(
             "EvalConfig",
             noise_target=self.noise_target,
@@ -96,31 +96,11 @@ class EvalConfig:
             max_spp=self.max_spp,
             min_pilot=2,
         )
-        if not isinstance(self.max_depth, int) or self.max_depth < 3:
-            raise ConfigError(f"EvalConfig.max_depth must be an int ≥ 3, got {self.max_depth!r}")
+        if not isinstance(self.trace, TraceConfig):
+            raise ConfigError(f"EvalConfig.trace must be a TraceConfig, got {type(self.trace).__name__}")
         from ..render import resolve_backend
 
         object.__setattr__(self, "backend", resolve_backend(self.backend, "EvalConfig.backend"))
-        if self.shading not in SHADINGS:
-            raise ConfigError(f"EvalConfig.shading must be one of {SHADINGS}, got {self.shading!r}")
-        if self.glossy_filter not in GLOSSY_FILTERS:
-            raise ConfigError(
-                f"EvalConfig.glossy_filter must be one of {GLOSSY_FILTERS}, got {self.glossy_filter!r}"
-            )
-        if not isinstance(self.glossy_lod_bias, int | float) or not math.isfinite(self.glossy_lod_bias):
-            raise ConfigError(
-                f"EvalConfig.glossy_lod_bias must be a finite number, got {self.glossy_lod_bias!r}"
-            )
-        if not isinstance(self.trace, TraceConfig):
-            raise ConfigError(f"EvalConfig.trace must be a TraceConfig, got {type(self.trace).__name__}")
-        if not self.normal_bias >= 0:
-            raise ConfigError(f"EvalConfig.normal_bias must be ≥ 0, got {self.normal_bias!r}")
-        if not self.leak_sigmas > 0:
-            raise ConfigError(f"EvalConfig.leak_sigmas must be > 0, got {self.leak_sigmas!r}")
-        if not 0 <= self.perfect_trace_margin < 1 or not self.agreement_rtol >= 0 or not self.relmse_eps > 0:
-            raise ConfigError(
-                "EvalConfig.perfect_trace_margin must be in [0, 1), agreement_rtol ≥ 0 and relmse_eps > 0"
-            )
 
 
 def check_eval_memory(config, what: str) -> None:

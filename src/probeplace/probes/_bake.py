@@ -74,7 +74,7 @@ from .._core import (
     scene_box,
     texel_directions,
 )
-from .._core.runtime import progress_bar
+from .._core.runtime import check_settings, progress_bar, setting
 from ._filter import distance_moments, irradiance_map
 from ._inside import probes_inside
 
@@ -222,10 +222,6 @@ INSIDE_TESTS = ("reach", "backface", "none")
 FIRST_HIT_LOBES = ("diffuse", "all")
 
 
-def _is_pow2(n: int) -> bool:
-    return n >= 1 and (n & (n - 1)) == 0
-
-
 @dataclasses.dataclass(frozen=True, kw_only=True)
 class BakeConfig:
     """Bake settings.
@@ -269,53 +265,31 @@ class BakeConfig:
         progress: show a progress bar.
     """
 
-    radiance_res: int | None = None
-    geometry_res: int | None = None
-    irradiance_res: int = 8
-    moments_res: int = 16
-    n_sub: int = 2
-    moment_power: float = 50.0
-    inside_test: str = "reach"
-    inside_neighbours: int = 16
-    inside_res: int = 128
-    inside_backface_share: float = 0.5
-    probes_per_batch: int = 8
-    quality: float = 1.0
-    noise_target: float = 0.05
-    pilot_spp: int = 1
-    max_spp: int = 256
+    radiance_res: int | None = setting(None, lo=2)  # and a power of two (__post_init__)
+    geometry_res: int | None = setting(None, lo=2)  # and a power of two (__post_init__)
+    irradiance_res: int = setting(8, lo=1)
+    moments_res: int = setting(16, lo=1)
+    n_sub: int = setting(2, lo=1)
+    moment_power: float = setting(50.0, lo=0.0, lo_open=True)
+    inside_test: str = setting("reach", choices=INSIDE_TESTS)
+    inside_neighbours: int = setting(16, lo=1)
+    inside_res: int = setting(128, lo=1)
+    inside_backface_share: float = setting(0.5, lo=0.0, hi=1.0, lo_open=True, hi_open=True)
+    probes_per_batch: int = setting(8, lo=1)
+    quality: float = setting(1.0, lo=0.0, lo_open=True)
+    noise_target: float = setting(0.05, lo=0.0, hi=1.0, lo_open=True, hi_open=True)
+    pilot_spp: int = setting(1, lo=1)
+    max_spp: int = setting(256, lo=1)  # and ≥ pilot_spp (__post_init__)
     progress: bool = True
 
     def __post_init__(self):
+        """The declared ranges and choices (``_core.runtime.check_settings``), then what is not a range."""
+        check_settings(self)
         for name in ("radiance_res", "geometry_res"):
             v = getattr(self, name)
-            if v is not None and not (
-                isinstance(v, int) and not isinstance(v, bool) and _is_pow2(v) and v >= 2
-            ):
+            if v is not None and v & (v - 1):
                 raise ConfigError(f"BakeConfig.{name} must be a power of two ≥ 2, got {v!r}")
-        for name in (
-            "irradiance_res",
-            "moments_res",
-            "n_sub",
-            "probes_per_batch",
-            "inside_neighbours",
-            "inside_res",
-        ):
-            v = getattr(self, name)
-            if not isinstance(v, int) or isinstance(v, bool) or v < 1:
-                raise ConfigError(f"BakeConfig.{name} must be a positive int, got {v!r}")
-        if not (self.moment_power > 0 and math.isfinite(self.moment_power)):
-            raise ConfigError(f"BakeConfig.moment_power must be positive, got {self.moment_power!r}")
-        if self.inside_test not in INSIDE_TESTS:
-            raise ConfigError(
-                f"BakeConfig.inside_test must be one of {INSIDE_TESTS}, got {self.inside_test!r}"
-            )
-        if not 0.0 < self.inside_backface_share < 1.0:
-            raise ConfigError(
-                f"BakeConfig.inside_backface_share must be in (0, 1), got {self.inside_backface_share!r}"
-            )
-        if not self.quality > 0:
-            raise ConfigError(f"BakeConfig.quality must be positive, got {self.quality!r}")
+        # max_spp ≥ pilot_spp (the ranges it checks too are the declared ones)
         check_target(
             "BakeConfig", noise_target=self.noise_target, pilot_spp=self.pilot_spp, max_spp=self.max_spp
         )
