@@ -51,7 +51,10 @@ also under ``{scene}_{grid}_g{G}_…`` (G the geometry maps' resolution); target
 ``sponza_grid_seed_spread_over_black`` (the same spread of the glossy MSE ÷ each seed's black-image MSE:
 a seed draws new glossy rays, and the reference energy of those rays — the black image's MSE — itself
 moves 4–8 % between seeds, which no number of bake or reference paths removes; paired comparisons at one
-seed divide it out), and the set-up costs of 128 usable probes
+seed divide it out), ``sponza_grid_seed_spread_ci95`` (its 95 % interval, :func:`cv_interval`) and, with
+``--spread-fixed-rays``, ``sponza_grid_seed_spread_fixed_rays`` (the seeds' spread on seed 0's evaluation
+rays: the bake's and the reference's noise alone, what the sample counts control) with its interval; and
+the set-up costs of 128 usable probes
 on a line through Sponza's atrium, ``make_tracer_128_g512_s`` ≤ 10 and ``geometry_bake_128_g512_s`` ≤ 10
 (warm, compile apart; ``--no-costs`` skips them), with ``tracer_mb_per_probe_g512``.
 Geometry maps are ``--geometry-factor`` (default 2) times finer than the radiance maps: the light-field
@@ -134,6 +137,9 @@ AUTO_FIGURES = (
 REPORTED = (
     "sponza_8x4x4_g512_agreement",
     "sponza_grid_seed_spread_over_black",
+    "sponza_grid_seed_spread_ci95",
+    "sponza_grid_seed_spread_fixed_rays",
+    "sponza_grid_seed_spread_fixed_rays_ci95",
     *(f"sponza_{AUTO}_g512_{f}" for f in AUTO_FIGURES),
 )
 #: figures not measured yet, with why (reported null, the reason in ``skipped``); none at present.
@@ -213,19 +219,23 @@ class Bench:
             | {"trace_engine": self.args.trace_engine}
         )
 
-    def steps(self, seed: int):
-        """Reference, primary samples and CRN reference of one seed (computed once, shared by cells)."""
-        if seed not in self.shared:
+    def steps(self, seed: int, ray_seed: int | None = None):
+        """Reference, primary samples and CRN reference of one seed (computed once, shared by cells); with
+        ``ray_seed`` the primary samples (camera jitter, glossy directions) are that seed's, the reference's
+        paths still ``seed``'s."""
+        key = seed if ray_seed is None else (seed, ray_seed)
+        if key not in self.shared:
             from probeplace.evaluate import crn_reference, render_reference, sample_primary
 
             cam = self.scene.view(self.view)
             t0 = time.perf_counter()
             ref = render_reference(self.scene, cam, self.config, seed=seed, caster=self.caster)
-            prim = sample_primary(self.scene, cam, self.config, seed=seed, caster=self.caster)
+            rays = seed if ray_seed is None else ray_seed
+            prim = sample_primary(self.scene, cam, self.config, seed=rays, caster=self.caster)
             crn = crn_reference(self.scene, prim, self.config, seed=seed, caster=self.caster)
-            log(f"{self.key}: reference + CRN reference for seed {seed}: {time.perf_counter() - t0:.1f} s")
-            self.shared[seed] = (ref, prim, crn, time.perf_counter() - t0)
-        return self.shared[seed]
+            log(f"{self.key}: reference + CRN reference for seed {key}: {time.perf_counter() - t0:.1f} s")
+            self.shared[key] = (ref, prim, crn, time.perf_counter() - t0)
+        return self.shared[key]
 
     def geometry_res(self, res: int) -> int:
         """The geometry maps' resolution of a cell with radiance maps at ``res``."""
@@ -305,10 +315,16 @@ class Bench:
         log(f"{self.key}: placed {len(pos)} probes in {place_s:.1f} s, coverage {placed.coverage:.4f}")
         return pos, rec
 
-    def cell(self, grid: str, res: int, seed: int, positions: np.ndarray | None = None) -> dict:
+    def cell(
+        self, grid: str, res: int, seed: int, positions: np.ndarray | None = None, ray_seed: int | None = None
+    ) -> dict:
         """One cell's figures, from the cache when present: a grid (``NxMxK``), the automatic skeleton
-        set (``AUTO``; its placement seed is ``seed``) or, named ``grid``, the probes at ``positions``."""
+        set (``AUTO``; its placement seed is ``seed``) or, named ``grid``, the probes at ``positions``;
+        ``ray_seed``: the evaluation's rays from that seed (:meth:`steps`), the bake and reference paths
+        from ``seed``."""
         settings = self.settings() | {"grid": grid, "res": res, "seed": seed}
+        if ray_seed is not None:
+            settings["ray_seed"] = ray_seed
         if grid == AUTO:
             settings["placement"] = AUTO_PLACEMENT | {"seed": seed}
         if positions is not None:
@@ -332,7 +348,7 @@ class Bench:
         log(f"{self.key} {grid} r{res} seed {seed}: baking {len(pos)} probes")
         lf, times = self.bake(pos, res, seed)
         log(f"{self.key} {grid} r{res} seed {seed}: baked in {times['bake_s']:.1f} s; evaluating")
-        ref, prim, crn, _ = self.steps(seed)
+        ref, prim, crn, _ = self.steps(seed, ray_seed)
         check_bake_settings(lf, scene_name=self.scene.name, eval_max_depth=self.config.max_depth)
         t0 = time.perf_counter()
         tracer = make_tracer(lf, self.scene.bounds, config=self.config.trace)  # timed alone (issue 33)
@@ -359,6 +375,24 @@ class Bench:
             f"{out['unresolved']:.3f} (origin seen: {out['unresolved_seen']}), agreement {out['agreement']}"
         )
         return out
+
+
+def cv_interval(values: np.ndarray) -> list[float] | None:
+    """95 % interval of the coefficient of variation (population σ / mean) of ``values``: σ's χ² interval
+    (n σ̂² / σ² ~ χ²(n − 1) for normal values, σ̂ the population estimate) over the mean (its own error
+    ignored). From three seeds it spans about 0.5–4.4× the estimate, from five 0.6–2.9×: a spread of 6 %
+    from five seeds cannot tell 5 % from 15 %. None below two values."""
+    from scipy.stats import chi2
+
+    v = np.asarray(values, np.float64)
+    n = len(v)
+    if n < 2 or not v.mean() > 0:
+        return None
+    s2 = n * v.var()
+    return [
+        float(np.sqrt(s2 / chi2.ppf(0.975, n - 1)) / v.mean()),
+        float(np.sqrt(s2 / chi2.ppf(0.025, n - 1)) / v.mean()),
+    ]
 
 
 def summarise(m: dict) -> dict:
@@ -456,6 +490,14 @@ def run_scene(key: str, args, plan: dict, result: dict) -> None:
         result["sponza_grid_seed_spread"] = result["sponza_grid128_seed_cv"]  # issue 33's name, same figure
         r = np.array([x["glossy_over_black"] for x in runs])
         result["sponza_grid_seed_spread_over_black"] = float(r.std() / r.mean()) if len(r) > 1 else None
+        result["sponza_grid_seed_spread_ci95"] = cv_interval(g)
+        if args.spread_fixed_rays:  # the same seeds, every one evaluated on seed 0's rays
+            fixed = np.array([b.cell("8x4x4", res, s, ray_seed=0)["mse_glossy"] for s in range(args.seeds)])
+            result["sponza_grid_seed_spread_fixed_rays"] = float(fixed.std() / fixed.mean())
+            result["sponza_grid_seed_spread_fixed_rays_ci95"] = cv_interval(fixed)
+        else:
+            for k in ("sponza_grid_seed_spread_fixed_rays", "sponza_grid_seed_spread_fixed_rays_ci95"):
+                result[k], result["skipped"][k] = None, "--spread-fixed-rays not given"
     settings = b.settings()
     result["settings"][key] = settings | {"grids": plan["grids"], "res": plan["res"]}
 
@@ -564,6 +606,12 @@ def parse_args(argv=None) -> argparse.Namespace:
     )
     ap.add_argument("--timing-repeats", type=int, default=1)
     ap.add_argument("--seeds", type=int, default=3, help="bake + evaluation seeds of the 128-probe grid")
+    ap.add_argument(
+        "--spread-fixed-rays",
+        action="store_true",
+        help="also run the 128-probe grid's seeds on seed 0's evaluation rays (the bake and reference paths "
+        "still each seed's): sponza_grid_seed_spread_fixed_rays, the spread the sample counts control",
+    )
     ap.add_argument("--grid128-res", type=int, default=None, help="its map resolution (default 64; quick 16)")
     ap.add_argument("--fresh", action="store_true", help="recompute cached cells")
     ap.add_argument(
