@@ -44,7 +44,9 @@ from urllib.parse import unquote
 #: its plane (was the thickness): rays leaving a surface next to another hit it (issue 33).
 #: 4 (2026-12-05): the tracer's fallback takes up rays stalled on a surface (``TraceConfig.surface_lookback``)
 #: and its surface shell is half as thick (``TraceConfig.thickness`` 1.5 %): glossy estimates move (issue 33).
-RESULTS_VERSION = 4
+#: 5 (2026-12-05): a concave-crease partner is a neighbour whose normal differs from the surfel's by more
+#: than the shell allows (``_march._partners``): rays near one flat surface's texels resolve (issue 33).
+RESULTS_VERSION = 5
 
 #: Input keys recorded but not compared (flattened, as the refusal names them).
 NOT_COMPARED = ("scene.path",)

@@ -1,7 +1,8 @@
 """The light-field tracer (McGuire et al. 2017 §4; Wang et al. 2019 §4.2; docs/tracer.md): the tracer and
 its per-ray reference engine (``_trace``), the single-probe march (``_march``, ``_surfels``), the probe
 indices (``_index``), the wavefront engine (``_wavefront``), the engine switch (``_engine``), the status
-codes (``_status``) and which ray origins a probe sees (``_seen``).
+codes (``_status``), which ray origins a probe sees (``_seen``) and the simple NumPy reference of the
+single-probe trace that both engines are held to, sharing no step code with them (``_simple``).
 
 This ``__init__`` is the group's face for the rest of ``probes``."""
 
@@ -11,6 +12,7 @@ from ._index import VoxelIndex as VoxelIndex
 from ._index import grid_index as grid_index
 from ._index import voxel_index as voxel_index
 from ._seen import origins_seen as origins_seen
+from ._simple import trace_probe_simple as trace_probe_simple
 from ._status import TraceStatus as TraceStatus
 from ._trace import LightFieldTracer as LightFieldTracer
 from ._trace import TraceConfig as TraceConfig

@@ -116,13 +116,27 @@ def _partners(tr, xs, n, has):
     in front of the wall's plane and leaves the room as a false miss. A partner's plane crossed first is
     unknown, not a hit (``_surfel_test``): the crease test also passes some silhouettes (a pillar's side
     before a wall), where the partner plane runs through free space — on Sponza 16×8×8 at 64², taking
-    those crossings as hits lowered the agreement with exact casting from 0.83 to 0.78."""
+    those crossings as hits lowered the agreement with exact casting from 0.83 to 0.78.
+
+    A neighbour whose normal is within θ of the own surfel's is no partner: across a texel (angular width
+    Δ = √(4π)/res) the two planes part by at most r·Δ·tan θ, within half the surface shell when
+    tan θ ≤ thickness / (2Δ) (47° at 512², 28° at 256², 8° at 64² with the 1.5 % shell), so the own plane
+    stands for both as well as the shell allows. Neighbours on one flat wall pass the crease test (each
+    surfel lies on the other's plane), and their planes, tilted by the rounding of the stored normals
+    (bfloat16), are met a fraction of a millimetre apart: taking that for another surface crossed first
+    left clear hits near the ray's origin unknown (found by the standalone reference,
+    tests/probes/test_trace_simple.py). On Sponza's 16×8×8 grid at 512² (8,000 shading rays) the rule
+    took the unresolved rays from 5.4 % to 3.2 % (among those whose origin a probe sees 4.2 → 2.6 %), the
+    hits agreeing with exact casting 0.967 → 0.966."""
     own = jnp.arange(xs.shape[0]) == 0
     if tr.config.edge_tol is None:
         return own
     w = xs / jnp.maximum(jnp.linalg.norm(xs, axis=-1, keepdims=True), 1e-12)
     concave, _ = crease(xs[:1], n[:1], w[:1], xs, n, w, tr.config.edge_tol)
-    return own | (concave & has & has[0])
+    u = n / jnp.maximum(jnp.linalg.norm(n, axis=-1, keepdims=True), 1e-12)
+    tan_max = tr.config.thickness / (2.0 * math.sqrt(4.0 * math.pi) / tr.res)
+    one_plane = u @ u[0] >= 1.0 / math.sqrt(1.0 + tan_max * tan_max)  # within θ of the own normal
+    return own | (concave & ~one_plane & has & has[0])
 
 
 def _edge_on(tr, xs0, o, d, t):
