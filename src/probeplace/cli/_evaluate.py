@@ -78,7 +78,7 @@ def add_parser(sub) -> None:
         "--trace-engine",
         metavar="{wavefront,per_ray}",
         help="how the light-field tracer runs the glossy rays: wavefront (the same hits as per_ray, "
-        "many times faster) or per_ray (the simple reference) {runner}",
+        "many times faster) or per_ray (vmapped nested loops) {runner}",
         action=_RunnerDefault,
     )
     e.add_argument(

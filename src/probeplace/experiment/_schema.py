@@ -211,7 +211,7 @@ EvalStage = _stage_schema(
         view: camera name of the scene.
         trace_engine: how the light-field tracer runs the glossy rays (``probes.TraceConfig.engine``):
             ``"wavefront"`` (default: the per-ray engine's hits, ~20× faster shading on the Cornell demo at
-            64² geometry maps, 3× its compile time) or ``"per_ray"`` (the simple reference it is held to).
+            64² geometry maps, 3× its compile time) or ``"per_ray"`` (the engine it is held to).
     """,
     _LibEvalConfig,
     head=[("enabled", bool, field(default=True)), ("view", str, field(default="front"))],

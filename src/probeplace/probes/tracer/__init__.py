@@ -1,5 +1,5 @@
 """The light-field tracer (McGuire et al. 2017 §4; Wang et al. 2019 §4.2; docs/tracer.md): the tracer and
-its per-ray reference engine (``_trace``), the single-probe march (``_march``, ``_surfels``), the probe
+its per-ray engine (``_trace``), the single-probe march (``_march``, ``_surfels``), the probe
 indices (``_index``), the wavefront engine (``_wavefront``), the engine switch (``_engine``), the status
 codes (``_status``), which ray origins a probe sees (``_seen``) and the simple NumPy reference of the
 single-probe trace that both engines are held to, sharing no step code with them (``_simple``).

@@ -1,5 +1,5 @@
 """The engine switch above the two light-field tracers: :func:`trace_light_field` runs a batch of rays on
-the engine ``TraceConfig.engine`` names — the per-ray reference (``_trace.trace_ray``, vmapped) or the
+the engine ``TraceConfig.engine`` names — the per-ray engine (``_trace.trace_ray``, vmapped) or the
 wavefront state machine (``_wavefront.trace_wavefront``). Neither engine imports the other; both must give
 the same answers (``tests/probes/test_wavefront.py``)."""
 

@@ -157,8 +157,9 @@ class TraceConfig:
         max_steps: steps per octant piece of a single-probe trace (``None``: 6 × the march resolution).
         bounds_margin: rays stop this far (fraction of the largest scene extent) outside the scene box.
         engine: how :func:`trace_light_field` runs the rays: ``"per_ray"`` (one ray per vmapped lane,
-            nested loops: the simple reference) or ``"wavefront"`` (``_wavefront``: a state machine per
-            lane, finished lanes refilled; the same answers, t to a few float32 ulps).
+            nested loops) or ``"wavefront"`` (``_wavefront``: a state machine per lane, finished lanes
+            refilled; the same answers, t to a few float32 ulps). Both are held to the standalone NumPy
+            reference (``_simple.trace_probe_simple``).
         wavefront_lanes: wavefront: rays in flight at once (the batch; also bounds working memory).
             1024 lanes and 4 steps: the fastest, or within timing noise of it, on both the Cornell box and
             Sponza among 512 / 1024 / 2048 lanes and 2 / 4 / 8 / 16 steps (8000 rays, 2 CPU cores).

@@ -37,7 +37,8 @@ in the two programs and LLVM contracts multiply–adds into FMAs per fusion — 
 from itself as much between two batch sizes (tests/probes/test_wavefront.py).
 
 Choose the engine with ``TraceConfig(engine="wavefront")``; :func:`~._engine.trace_light_field` then runs
-:func:`trace_wavefront`. The per-ray engine stays the default and the simple reference.
+:func:`trace_wavefront`. The per-ray engine stays the library's default; both are held to the
+standalone NumPy reference (``_simple.trace_probe_simple``).
 """
 
 from __future__ import annotations
