@@ -64,7 +64,6 @@ from ._attribute import probe_error
 from ._config import EvalConfig
 from ._decompose import (
     STATUS_NAMES,
-    bootstrap_ci,
     glossy_terms,
     hit_agreement,
     light_leak,
@@ -81,6 +80,7 @@ from ._metrics import (
     EvalMetrics,
     GlossyScores,
     RunSettings,
+    interval95,
     measure_record,
     metric_key,
 )
@@ -279,11 +279,6 @@ def _images(component: str, probe, reference, config: EvalConfig, sq_px=None) ->
     )
 
 
-def _ci(config: EvalConfig, per_pixel) -> tuple[float, float]:
-    """The 95 % bootstrap interval of the mean of ``per_pixel`` (``bootstrap_ci``, seed 0)."""
-    return tuple(bootstrap_ci(per_pixel, n_resamples=config.bootstrap_resamples, seed=0))
-
-
 def _glossy_scores(scene, config: EvalConfig, prim, crn, shading, perfect, imgs, ref_img) -> GlossyScores:
     """The glossy indirect image against the CRN reference and its error taken apart (``_decompose.py``,
     docs/evaluate.md): noise floor, black image, perfect trace, view dependence, trace share, split by
@@ -326,8 +321,8 @@ def _glossy_scores(scene, config: EvalConfig, prim, crn, shading, perfect, imgs,
         perfect_trace_fallbacks=int(np.sum(perfect.fallback)),
         perfect_trace_fallback_share=float(np.sum(perfect.fallback) / n_exact) if n_exact else 0.0,
         relmse_perfect_trace=relative_mse(perfect_g, crn_ref_g, eps=config.relmse_eps),
-        ci95_mse_perfect_trace=_ci(config, terms["sq_px_perfect"]),
-        ci95_mse_trace_share=_ci(config, terms["sq_px"] - terms["sq_px_perfect"]),
+        ci95_mse_perfect_trace=interval95(config, terms["sq_px_perfect"]),
+        ci95_mse_trace_share=interval95(config, terms["sq_px"] - terms["sq_px_perfect"]),
     )
 
 
