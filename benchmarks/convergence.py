@@ -428,6 +428,7 @@ def summarise(m: dict) -> dict:
         "relmse_glossy": m["relmse_glossy_indirect"],
         "relmse_diffuse": m["relmse_diffuse_indirect"],
         "ci95_mse_glossy": m["ci95_mse_glossy_indirect"],
+        "top_pixel_share_glossy": m["top_pixel_share_glossy_indirect"],
         "ci95_mse_glossy_perfect_trace": m["ci95_mse_glossy_perfect_trace"],
         "ci95_mse_diffuse": m["ci95_mse_diffuse_indirect"],
         "shading_s_per_frame": m["shading_s_per_frame"],

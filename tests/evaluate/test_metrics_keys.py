@@ -4,7 +4,8 @@ Oracles: (a) docs/evaluate.md's "metrics.json" table, which must list exactly th
 (b) the dict ``score`` built by hand before the typed record existed (commit 35686bf), rebuilt here
 from the same steps' results by that code's rules (:func:`_legacy_metrics`, copied from it and reading
 only public building blocks): ``to_json`` must give it key for key, in the same order, with the same
-values and nesting, so that a run's ``metrics.json`` is byte-identical; (c) the round trip
+values and nesting, so that a run's ``metrics.json`` is byte-identical up to the keys added since, which
+follow its keys and have their own oracle there; (c) the round trip
 ``from_json(to_json(m)) == m`` on that real evaluation, also through JSON text; (d) runs written before a
 figure existed read back with that figure None.
 """
@@ -115,7 +116,7 @@ def _legacy_samples(config, choices: dict, metrics: dict) -> dict:
 
 
 def _legacy_metrics(scene, lf, view, config, seed, ref, prim, crn, shading, perfect, counts) -> dict:
-    """``score``'s metrics dict as commit 35686bf wrote it, key by key."""
+    """``score``'s metrics dict as commit 35686bf wrote it, key by key, then the keys added since."""
     W, H, S = prim.width, prim.height, prim.spp
     ref_img, ref_var = ref.images, ref.variance
     w_gl = prim.w_glossy
@@ -218,6 +219,12 @@ def _legacy_metrics(scene, lf, view, config, seed, ref, prim, crn, shading, perf
         "memory_bytes": memory_bytes(lf, config.trace.subdivide),
     }
     metrics["samples"] = _legacy_samples(config, counts, metrics)
+    # Added since that commit, after its keys (``_JSON_ORDER``): each component's largest pixel's share of
+    # its summed per-pixel squared error.
+    share = lambda v: float(np.max(v) / np.sum(v)) if np.sum(v) > 0 else None
+    metrics["top_pixel_share_diffuse_indirect"] = share(_sq_px(probe_d, ref_img["diffuse_indirect"]))
+    metrics["top_pixel_share_glossy_indirect"] = share(terms["sq_px"])
+    metrics["top_pixel_share_full"] = share(_sq_px(probe_full, ref_img["full"]))
     return metrics
 
 
@@ -336,7 +343,9 @@ def test_the_documented_metric_is_one_edit(steps, tmp_path):
             d = np.asarray(result.images["probe_" + c], np.float64) - result.images["ref_" + c]
             want = float(np.sqrt(np.mean(d * d, axis=-1).max()))
             assert want > 0 and abs(m[key] - want) <= 1e-3 * want, (key, m[key], want)
-        assert list(m)[: len(m) - 3] == [k for k in METRIC_KEYS if not k.startswith({name!r})]
+        keys, new = list(m), {name!r}
+        assert [k for k in keys if not k.startswith(new)] == [k for k in METRIC_KEYS if not k.startswith(new)]
+        assert min(i for i, k in enumerate(keys) if k.startswith(new)) > keys.index("samples")
         assert EvalMetrics.from_json(m) == result.scores
         print("ok")
         """

@@ -340,3 +340,20 @@ def test_identical_placements_are_marked(tmp_path):
     assert "| skeleton | 3 |" in at8 and "| skeleton | 3 |" in at16
     eq_count = text.split("equal probe count")[1].split("\n## ")[0]  # the grid's count: 16
     assert eq_count.startswith(" (16 probes") and "| lod-grid (= grid) |" in eq_count
+
+
+def test_all_runs_shows_the_largest_pixels_share(tmp_path):
+    """The "one pixel" column is the run's ``top_pixel_share_glossy_indirect`` (0.75: three quarters of the
+    glossy MSE is one pixel's); a run written before the figure existed shows a dash."""
+    exp = tmp_path / "top"
+    _fake_run(exp, "grid", 8, eval_extra={"top_pixel_share_glossy_indirect": 0.75})
+    _fake_run(exp, "skeleton", 8)
+    text = make_report(exp).read_text()
+    all_runs = text.split("## All runs")[1].split("\n## ")[0]
+    head = next(ln for ln in all_runs.splitlines() if ln.startswith("| run |")).split(" | ")
+    col = head.index("one pixel")
+    grid_row = next(ln for ln in all_runs.splitlines() if ln.startswith("| cornell_box__grid__")).split(" | ")
+    skel_row = next(ln for ln in all_runs.splitlines() if ln.startswith("| cornell_box__skeleton__")).split(
+        " | "
+    )
+    assert (grid_row[col], skel_row[col]) == ("75%", "—")

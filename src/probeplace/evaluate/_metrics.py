@@ -102,6 +102,12 @@ def _black(m: ComponentImages) -> np.ndarray:
     return np.zeros_like(m.reference)
 
 
+def _top_pixel_share(m: ComponentImages) -> float | None:
+    """The largest pixel's share of the summed per-pixel squared error (None for no error)."""
+    total = float(np.sum(m.sq_px))
+    return float(np.max(m.sq_px)) / total if total > 0 else None
+
+
 @dataclasses.dataclass(frozen=True)
 class RunSettings:
     """What was evaluated and how: scene, view, image size, sample counts (the ones rendered, chosen
@@ -134,6 +140,9 @@ class ComponentScores:
     noise_floor: float | None = None  # the reference's own noise, measured per component by ``score``
     relmse: float | None = measured(lambda m: relative_mse(m.probe, m.reference, eps=m.config.relmse_eps))
     ci95_mse: tuple[float, float] | None = measured(lambda m: interval95(m.config, m.sq_px))
+    # Near 1, the MSE is one pixel's: on Sponza one glossy ray reflecting a sun highlight, which no probe
+    # holds, made 75 % of every method's glossy MSE on one seed (issue 33; experiments/README.md §2).
+    top_pixel_share: float | None = measured(_top_pixel_share)
 
 
 @dataclasses.dataclass(frozen=True)

@@ -148,6 +148,13 @@ def mse(r: dict, component: str = PRIMARY) -> float | None:
     return None if ev is None else _num(ev.component(component).mse)
 
 
+def top_pixel_share(r: dict, component: str = PRIMARY) -> float | None:
+    """The largest pixel's share of the run's ``component`` squared error (None for a run written before
+    the figure existed, or with no error)."""
+    ev = evaluation(r)
+    return None if ev is None else _num(ev.component(component).top_pixel_share)
+
+
 def noise_floor(r: dict, component: str = PRIMARY) -> float | None:
     """The reference's noise floor of the run's ``component`` (None when missing or not finite)."""
     ev = evaluation(r)
