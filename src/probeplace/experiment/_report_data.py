@@ -142,23 +142,27 @@ def evaluation(r: dict) -> EvalMetrics | None:
     return EvalMetrics.from_json(r["eval"]) if r.get("eval") else None
 
 
+def _component_figure(r: dict, field: str, component: str) -> float | None:
+    """Field ``field`` of the run's ``component`` record (None without an evaluation, or when missing or
+    not finite)."""
+    ev = evaluation(r)
+    return None if ev is None else _num(getattr(ev.component(component), field))
+
+
 def mse(r: dict, component: str = PRIMARY) -> float | None:
     """The MSE of the run's ``component`` image (None when missing or not finite)."""
-    ev = evaluation(r)
-    return None if ev is None else _num(ev.component(component).mse)
+    return _component_figure(r, "mse", component)
 
 
 def top_pixel_share(r: dict, component: str = PRIMARY) -> float | None:
     """The largest pixel's share of the run's ``component`` squared error (None for a run written before
     the figure existed, or with no error)."""
-    ev = evaluation(r)
-    return None if ev is None else _num(ev.component(component).top_pixel_share)
+    return _component_figure(r, "top_pixel_share", component)
 
 
 def noise_floor(r: dict, component: str = PRIMARY) -> float | None:
     """The reference's noise floor of the run's ``component`` (None when missing or not finite)."""
-    ev = evaluation(r)
-    return None if ev is None else _num(ev.component(component).noise_floor)
+    return _component_figure(r, "noise_floor", component)
 
 
 def black_mse(r: dict, component: str = PRIMARY) -> float | None:
@@ -167,8 +171,7 @@ def black_mse(r: dict, component: str = PRIMARY) -> float | None:
     without one (the full image)."""
     if metric_key("mse_black", component) not in METRIC_KEYS:
         return None
-    ev = evaluation(r)
-    v = None if ev is None else _num(ev.component(component).mse_black)
+    v = _component_figure(r, "mse_black", component)
     if v is not None:
         return v
     exr = r["dir"] / RunFiles.eval_dir / RunFiles.images
