@@ -33,7 +33,7 @@ settings, seed): they are computed once per scene and seed with the evaluation's
 (``evaluate.render_reference`` …) and shared by every cell; only shading, the perfect trace and scoring
 run per cell. Each cell's JSON is cached atomically in ``benchmarks/results/convergence_cells/`` (the
 name carries a hash of the settings, not of the code) and skipped when present; ``--fresh`` recomputes
-(do so after changing the code).
+each once (do so after changing the code).
 
 Targets (issue 16), each reported as ``targets: {key: {value, target, met}}``:
 ``cornell_4x4x4_r64_mse_over_floor`` ≤ 1.3 (glossy MSE ÷ CRN noise floor); on Sponza at 16×8×8 × 64²
@@ -53,7 +53,9 @@ a seed draws new glossy rays, and the reference energy of those rays — the bla
 moves 4–8 % between seeds, which no number of bake or reference paths removes; paired comparisons at one
 seed divide it out), ``sponza_grid_seed_spread_ci95`` (its 95 % interval, :func:`cv_interval`) and, with
 ``--spread-fixed-rays``, ``sponza_grid_seed_spread_fixed_rays`` (the seeds' spread on seed 0's evaluation
-rays: the bake's and the reference's noise alone, what the sample counts control) with its interval; and
+rays: the bake's and the reference's noise alone, what the sample counts control) with its interval,
+``sponza_grid_seed_spread_bulk`` (the spread of the glossy MSE less each run's 1 % of pixels with the
+largest error, ``top_percent_share``: the sun glints that make the raw spread) with its interval; and
 the set-up costs of 128 usable probes
 on a line through Sponza's atrium, ``make_tracer_128_g512_s`` ≤ 10 and ``geometry_bake_128_g512_s`` ≤ 10
 (warm, compile apart; ``--no-costs`` skips them), with ``tracer_mb_per_probe_g512``.
@@ -140,6 +142,8 @@ REPORTED = (
     "sponza_grid_seed_spread_ci95",
     "sponza_grid_seed_spread_fixed_rays",
     "sponza_grid_seed_spread_fixed_rays_ci95",
+    "sponza_grid_seed_spread_bulk",
+    "sponza_grid_seed_spread_bulk_ci95",
     *(f"sponza_{AUTO}_g512_{f}" for f in AUTO_FIGURES),
 )
 #: figures not measured yet, with why (reported null, the reason in ``skipped``); none at present.
@@ -190,6 +194,12 @@ class Bench:
         )
         self.shared: dict = {}
         self.warm: set = set()
+        self.written: set = set()  # cache files this run wrote: --fresh recomputes each once
+
+    def cached(self, path: Path) -> bool:
+        """Whether ``path`` (a cell's or a placement's JSON) is read instead of computed: present, and not
+        under ``--fresh`` unless this run wrote it."""
+        return path.exists() and (not self.args.fresh or path in self.written)
 
     def settings(self) -> dict:
         c = self.config
@@ -294,7 +304,7 @@ class Bench:
         digest = hashlib.sha1(json.dumps(key, sort_keys=True).encode()).hexdigest()[:10]
         method, budget = AUTO_PLACEMENT["method"], AUTO_PLACEMENT["budget"]
         path = CELLS / f"{self.key}_place_{method}_{budget}_s{seed}_{digest}.json"
-        if path.exists() and not self.args.fresh:
+        if self.cached(path):
             log(f"{path.name}: cached")
             rec = json.loads(path.read_text())
             return np.asarray(rec.pop("positions"), np.float64), rec
@@ -312,6 +322,7 @@ class Bench:
             "n_placed": len(pos),
         }
         write_text_atomic(path, json.dumps(rec | {"positions": pos.tolist()}, indent=1, sort_keys=True))
+        self.written.add(path)
         log(f"{self.key}: placed {len(pos)} probes in {place_s:.1f} s, coverage {placed.coverage:.4f}")
         return pos, rec
 
@@ -332,7 +343,7 @@ class Bench:
             settings["positions_sha1"] = hashlib.sha1(positions.tobytes()).hexdigest()
         digest = hashlib.sha1(json.dumps(settings, sort_keys=True).encode()).hexdigest()[:10]
         path = CELLS / f"{self.key}_{grid}_r{res}_s{seed}_{digest}.json"
-        if path.exists() and not self.args.fresh:
+        if self.cached(path):
             log(f"{path.name}: cached")
             return json.loads(path.read_text())
         from probeplace.evaluate import perfect_trace, score, shade_probes
@@ -369,12 +380,20 @@ class Bench:
         if placement:
             out |= {"place_s": placement["place_s"], "placement": placement}
         write_text_atomic(path, json.dumps(out, indent=1, sort_keys=True))
+        self.written.add(path)
         log(
             f"{self.key} {grid} r{res} seed {seed}: glossy {out['mse_glossy']:.3g} (floor "
             f"{out['noise_floor_glossy']:.3g}, perfect {out['mse_glossy_perfect_trace']:.3g}), unresolved "
             f"{out['unresolved']:.3f} (origin seen: {out['unresolved_seen']}), agreement {out['agreement']}"
         )
         return out
+
+
+def seed_cv(values) -> float | None:
+    """Coefficient of variation (population σ / mean) of ``values``; None below two values or for a mean
+    that is not positive."""
+    v = np.asarray(values, np.float64)
+    return float(v.std() / v.mean()) if len(v) > 1 and v.mean() > 0 else None
 
 
 def cv_interval(values: np.ndarray) -> list[float] | None:
@@ -429,6 +448,7 @@ def summarise(m: dict) -> dict:
         "relmse_diffuse": m["relmse_diffuse_indirect"],
         "ci95_mse_glossy": m["ci95_mse_glossy_indirect"],
         "top_pixel_share_glossy": m["top_pixel_share_glossy_indirect"],
+        "top_percent_share_glossy": m["top_percent_share_glossy_indirect"],
         "ci95_mse_glossy_perfect_trace": m["ci95_mse_glossy_perfect_trace"],
         "ci95_mse_diffuse": m["ci95_mse_diffuse_indirect"],
         "shading_s_per_frame": m["shading_s_per_frame"],
@@ -487,14 +507,24 @@ def run_scene(key: str, args, plan: dict, result: dict) -> None:
         result["sponza_grid128_mse_glossy_perfect_trace"] = runs[0]["mse_glossy_perfect_trace"]
         result["sponza_grid128_perfect_trace_over_black"] = runs[0]["perfect_trace_over_black"]
         result["sponza_grid128_perfect_trace_over_floor"] = runs[0]["perfect_trace_over_floor"]
-        result["sponza_grid128_seed_cv"] = float(g.std() / g.mean()) if len(g) > 1 and g.mean() > 0 else None
+        result["sponza_grid128_seed_cv"] = seed_cv(g)
         result["sponza_grid_seed_spread"] = result["sponza_grid128_seed_cv"]  # issue 33's name, same figure
-        r = np.array([x["glossy_over_black"] for x in runs])
-        result["sponza_grid_seed_spread_over_black"] = float(r.std() / r.mean()) if len(r) > 1 else None
+        result["sponza_grid_seed_spread_over_black"] = seed_cv([x["glossy_over_black"] for x in runs])
         result["sponza_grid_seed_spread_ci95"] = cv_interval(g)
+        # The bulk: the glossy MSE without its 1 % of pixels with the largest error (the sun glints that
+        # make the raw spread, experiments/README.md §2); null for cells cached before the share existed.
+        tail = [x.get("top_percent_share_glossy") for x in runs]
+        bulk = None if None in tail else g * (1.0 - np.array(tail))
+        result["sponza_grid_seed_spread_bulk"] = None if bulk is None else seed_cv(bulk)
+        result["sponza_grid_seed_spread_bulk_ci95"] = None if bulk is None else cv_interval(bulk)
+        if bulk is None:
+            for k in ("sponza_grid_seed_spread_bulk", "sponza_grid_seed_spread_bulk_ci95"):
+                result["skipped"][k] = (
+                    "a cell was cached before top_percent_share existed: rerun with --fresh"
+                )
         if args.spread_fixed_rays:  # the same seeds, every one evaluated on seed 0's rays
             fixed = np.array([b.cell("8x4x4", res, s, ray_seed=0)["mse_glossy"] for s in range(args.seeds)])
-            result["sponza_grid_seed_spread_fixed_rays"] = float(fixed.std() / fixed.mean())
+            result["sponza_grid_seed_spread_fixed_rays"] = seed_cv(fixed)
             result["sponza_grid_seed_spread_fixed_rays_ci95"] = cv_interval(fixed)
         else:
             for k in ("sponza_grid_seed_spread_fixed_rays", "sponza_grid_seed_spread_fixed_rays_ci95"):

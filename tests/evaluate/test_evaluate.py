@@ -27,6 +27,7 @@ from probeplace.evaluate import (
     glossy_terms,
     hit_agreement,
     relative_mse,
+    top_share,
     write_evaluation,
 )
 from probeplace.geometry import BruteForceCaster
@@ -244,6 +245,16 @@ def test_bootstrap_relmse_and_agreement():
     t_ex = np.array([1.01, 2.2, np.inf, 4.0, 5.0, 1.0])
     assert hit_agreement(t_lf, t_ex, st, rtol=0.02) == (0.5, 4)
     assert hit_agreement(t_lf, t_ex, np.zeros(6, int)) == (None, 0)
+
+
+def test_top_share_is_the_largest_pixels_part_of_the_sum():
+    """Closed forms: the k largest of a known array, ties, k past the size, no error at all."""
+    sq = np.array([[3.0, 1.0], [4.0, 2.0]])
+    assert top_share(sq, 1) == 0.4 and top_share(sq, 2) == 0.7 and top_share(sq, 9) == 1.0
+    assert top_share(np.full(10, 2.0), 3) == pytest.approx(0.3)  # ties: any three of them
+    assert top_share(np.zeros(5), 1) is None
+    v = np.random.default_rng(2).pareto(1.5, 1000)  # against a full sort
+    assert top_share(v, 10) == pytest.approx(np.sort(v)[-10:].sum() / v.sum(), rel=1e-12)
 
 
 def test_decomposition_adds_up_on_the_real_run(cornell_eval):

@@ -219,12 +219,20 @@ def _legacy_metrics(scene, lf, view, config, seed, ref, prim, crn, shading, perf
         "memory_bytes": memory_bytes(lf, config.trace.subdivide),
     }
     metrics["samples"] = _legacy_samples(config, counts, metrics)
-    # Added since that commit, after its keys (``_JSON_ORDER``): each component's largest pixel's share of
-    # its summed per-pixel squared error.
+    # Added since that commit, after its keys (``_JSON_ORDER``), component by component: the largest
+    # pixel's share of the component's summed per-pixel squared error, and the share of its 1 % of pixels
+    # with the largest (one at least), by a full sort.
     share = lambda v: float(np.max(v) / np.sum(v)) if np.sum(v) > 0 else None
-    metrics["top_pixel_share_diffuse_indirect"] = share(_sq_px(probe_d, ref_img["diffuse_indirect"]))
-    metrics["top_pixel_share_glossy_indirect"] = share(terms["sq_px"])
-    metrics["top_pixel_share_full"] = share(_sq_px(probe_full, ref_img["full"]))
+    top = lambda v: (
+        float(np.sort(v, axis=None)[::-1][: max(1, v.size // 100)].sum() / v.sum()) if v.sum() > 0 else None
+    )
+    for c, sq in (
+        ("diffuse_indirect", _sq_px(probe_d, ref_img["diffuse_indirect"])),
+        ("glossy_indirect", terms["sq_px"]),
+        ("full", _sq_px(probe_full, ref_img["full"])),
+    ):
+        metrics[f"top_pixel_share_{c}"] = share(sq)
+        metrics[f"top_percent_share_{c}"] = top(sq)
     return metrics
 
 

@@ -344,9 +344,11 @@ def test_identical_placements_are_marked(tmp_path):
 
 def test_all_runs_shows_the_largest_pixels_share(tmp_path):
     """The "one pixel" column is the run's ``top_pixel_share_glossy_indirect`` (0.75: three quarters of the
-    glossy MSE is one pixel's); a run written before the figure existed shows a dash."""
+    glossy MSE is one pixel's), "top 1 %" its ``top_percent_share_glossy_indirect``; a run written before
+    the figures existed shows dashes."""
     exp = tmp_path / "top"
-    _fake_run(exp, "grid", 8, eval_extra={"top_pixel_share_glossy_indirect": 0.75})
+    extra = {"top_pixel_share_glossy_indirect": 0.75, "top_percent_share_glossy_indirect": 0.9}
+    _fake_run(exp, "grid", 8, eval_extra=extra)
     _fake_run(exp, "skeleton", 8)
     text = make_report(exp).read_text()
     all_runs = text.split("## All runs")[1].split("\n## ")[0]
@@ -357,3 +359,4 @@ def test_all_runs_shows_the_largest_pixels_share(tmp_path):
         " | "
     )
     assert (grid_row[col], skel_row[col]) == ("75%", "—")
+    assert head[col + 1] == "top 1 %" and (grid_row[col + 1], skel_row[col + 1]) == ("90%", "—")

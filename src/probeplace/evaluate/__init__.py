@@ -8,7 +8,9 @@ from ._config import check_eval_memory as check_eval_memory
 from ._decompose import bootstrap_ci as bootstrap_ci
 from ._decompose import glossy_terms as glossy_terms
 from ._decompose import hit_agreement as hit_agreement
+from ._decompose import pixel_sq_error as pixel_sq_error
 from ._decompose import relative_mse as relative_mse
+from ._decompose import top_share as top_share
 from ._evaluate import EvalResult as EvalResult
 from ._evaluate import evaluate as evaluate
 from ._evaluate import memory_bytes as memory_bytes

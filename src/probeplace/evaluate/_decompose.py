@@ -63,6 +63,15 @@ def pixel_sq_error(a: np.ndarray, b: np.ndarray) -> np.ndarray:
     return np.mean(d * d, axis=-1).reshape(-1)
 
 
+def top_share(sq_px: np.ndarray, k: int) -> float | None:
+    """The share of the summed per-pixel squared error made by the ``k`` pixels with the largest (None
+    for no error): the sum of the k largest, whatever their order or ties."""
+    sq = np.ravel(sq_px)
+    total = float(np.sum(sq))
+    k = min(k, sq.size)
+    return float(np.sum(np.partition(sq, sq.size - k)[sq.size - k :])) / total if total > 0 else None
+
+
 def pixel_means(v: np.ndarray, n_pixels: int, spp: int) -> np.ndarray:
     """(n_pixels·spp, …) pixel-major samples → (n_pixels, …) per-pixel means."""
     v = np.asarray(v, np.float64)

@@ -160,6 +160,12 @@ def top_pixel_share(r: dict, component: str = PRIMARY) -> float | None:
     return _component_figure(r, "top_pixel_share", component)
 
 
+def top_percent_share(r: dict, component: str = PRIMARY) -> float | None:
+    """The share of the run's ``component`` squared error made by its 1 % of pixels with the largest (None
+    for a run written before the figure existed, or with no error)."""
+    return _component_figure(r, "top_percent_share", component)
+
+
 def noise_floor(r: dict, component: str = PRIMARY) -> float | None:
     """The reference's noise floor of the run's ``component`` (None when missing or not finite)."""
     return _component_figure(r, "noise_floor", component)
