@@ -517,14 +517,16 @@ def run_scene(key: str, args, plan: dict, result: dict) -> None:
         # The bulk: the glossy MSE without its 1 % of pixels with the largest error (the sun glints that
         # make the raw spread, experiments/README.md §2); null for cells cached before the share existed.
         tail = [x.get("top_percent_share_glossy") for x in runs]
-        bulk = None if None in tail else g * (1.0 - np.array(tail))
-        result["sponza_grid_seed_spread_bulk"] = None if bulk is None else seed_cv(bulk)
-        result["sponza_grid_seed_spread_bulk_ci95"] = None if bulk is None else cv_interval(bulk)
-        if bulk is None:
-            for k in ("sponza_grid_seed_spread_bulk", "sponza_grid_seed_spread_bulk_ci95"):
+        bulk_keys = ("sponza_grid_seed_spread_bulk", "sponza_grid_seed_spread_bulk_ci95")
+        if None in tail:
+            for k in bulk_keys:
+                result[k] = None
                 result["skipped"][k] = (
                     "a cell was cached before top_percent_share existed: rerun with --fresh"
                 )
+        else:
+            bulk = g * (1.0 - np.array(tail))
+            result[bulk_keys[0]], result[bulk_keys[1]] = seed_cv(bulk), cv_interval(bulk)
         if args.spread_fixed_rays:  # the same seeds, every one evaluated on seed 0's rays
             fixed = np.array([b.cell("8x4x4", res, s, ray_seed=0)["mse_glossy"] for s in range(args.seeds)])
             result["sponza_grid_seed_spread_fixed_rays"] = seed_cv(fixed)

@@ -19,9 +19,12 @@ from __future__ import annotations
 
 import argparse
 import json
+import sys
 from pathlib import Path
 
 import numpy as np
+
+sys.path.insert(0, str(Path(__file__).resolve().parent.parent / "benchmarks"))
 
 
 def _runs(folder: Path) -> dict[tuple[str, int], np.ndarray]:
@@ -39,6 +42,10 @@ def _runs(folder: Path) -> dict[tuple[str, int], np.ndarray]:
     return out
 
 
+def _pct(v) -> str:
+    return "—" if v is None else f"{v:.1%}"
+
+
 def _ratio(q) -> str:
     """``seed_paired_ratio``'s (ratio, lo, hi) as text."""
     return "—" if q is None else f"{q[0]:.2f} [{q[1]:.2f}, {q[2]:.2f}]"
@@ -50,6 +57,7 @@ def _baseline(method: str, baseline: str) -> str:
 
 
 def main(argv=None) -> dict:
+    from convergence import seed_cv
     from probeplace.evaluate import top_share
     from probeplace.experiment import seed_paired_ratio
 
@@ -64,17 +72,16 @@ def main(argv=None) -> dict:
     seeds = sorted({s for _, s in runs})
     k = max(1, next(iter(runs.values())).size // 100)
     tail = {key: set(np.argpartition(sq, sq.size - k)[sq.size - k :]) for key, sq in runs.items()}
-    per_run = {}
+    fig = {}  # (method, seed) → the run's figures
     for (m, s), sq in sorted(runs.items(), key=lambda kv: (kv[0][1], kv[0][0])):
         base = tail.get((_baseline(m, args.baseline), s))
         share = top_share(sq, k)
-        per_run[f"{m}_s{s}"] = {
+        fig[(m, s)] = r = {
             "mse": float(sq.mean()),
             "top_percent_share": share,
             "bulk": float(sq.mean()) * (1.0 - (share or 0.0)),
             "tail_shared_with_baseline": None if base is None else len(base & tail[(m, s)]) / k,
         }
-        r = per_run[f"{m}_s{s}"]
         shared = "—" if base is None else f"{r['tail_shared_with_baseline']:.0%}"
         print(
             f"seed {s} {m:>10}: MSE {r['mse']:.3g}, top 1 % {r['top_percent_share']:.0%} of it, bulk "
@@ -83,34 +90,22 @@ def main(argv=None) -> dict:
     per_method = {}
     for m in methods:
         ss = [s for s in seeds if (m, s) in runs]
-        bulk = np.array([per_run[f"{m}_s{s}"]["bulk"] for s in ss])
-        mse = np.array([per_run[f"{m}_s{s}"]["mse"] for s in ss])
         b = _baseline(m, args.baseline)
-        paired = [s for s in ss if (b, s) in runs]
-        per_method[m] = {
-            "seeds": ss,
-            "mse_cv": float(mse.std() / mse.mean()),
-            "bulk_cv": float(bulk.std() / bulk.mean()),
-            "mse_over_baseline": [per_run[f"{m}_s{s}"]["mse"] / per_run[f"{b}_s{s}"]["mse"] for s in paired],
-            "bulk_over_baseline": [
-                per_run[f"{m}_s{s}"]["bulk"] / per_run[f"{b}_s{s}"]["bulk"] for s in paired
-            ],
+        pairs = {f: [(fig[(m, s)][f], fig[(b, s)][f]) for s in ss if (b, s) in runs] for f in ("mse", "bulk")}
+        per_method[m] = p = {"seeds": ss}
+        for f in ("mse", "bulk"):
+            p[f"{f}_cv"] = seed_cv([fig[(m, s)][f] for s in ss])
+            p[f"{f}_over_baseline"] = [x / y for x, y in pairs[f]]
             # geometric mean over seeds and its 95 % t-interval in log space, as the report's ratios
-            "mse_ratio_ci95": seed_paired_ratio(
-                [(per_run[f"{m}_s{s}"]["mse"], per_run[f"{b}_s{s}"]["mse"]) for s in paired]
-            ),
-            "bulk_ratio_ci95": seed_paired_ratio(
-                [(per_run[f"{m}_s{s}"]["bulk"], per_run[f"{b}_s{s}"]["bulk"]) for s in paired]
-            ),
-        }
-        p = per_method[m]
+            p[f"{f}_ratio_ci95"] = seed_paired_ratio(pairs[f])
         print(
-            f"{m:>10}: MSE spread {p['mse_cv']:.1%}, bulk spread {p['bulk_cv']:.1%}; "
+            f"{m:>10}: MSE spread {_pct(p['mse_cv'])}, bulk spread {_pct(p['bulk_cv'])}; "
             f"÷ {args.baseline} by seed: "
             f"MSE {' / '.join(f'{v:.2f}' for v in p['mse_over_baseline'])}, "
             f"bulk {' / '.join(f'{v:.2f}' for v in p['bulk_over_baseline'])}; over seeds: MSE "
             f"{_ratio(p['mse_ratio_ci95'])}, bulk {_ratio(p['bulk_ratio_ci95'])}"
         )
+    per_run = {f"{m}_s{s}": v for (m, s), v in fig.items()}
     out = {"folder": str(args.folder), "tail_pixels": k, "runs": per_run, "methods": per_method}
     print(json.dumps(out))
     return out

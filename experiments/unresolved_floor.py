@@ -60,22 +60,28 @@ def _bake(scene, dims, geometry_res, caster):
     return bake_probes(scene, probes, caster=caster, radiance_fn=const, key=jax.random.key(0), config=cfg)
 
 
+def _probes_see(caster, p, x) -> tuple[np.ndarray, np.ndarray]:
+    """Whether each probe at ``p`` (n, m, 3) sees its point of ``x`` (n, 3): the segment probe → x free up
+    to 0.1 % of its length. Returns that (n, m) and the unit directions probe → x (n, m, 3)."""
+    v = x[:, None] - p
+    dist = np.linalg.norm(v, axis=2)
+    dv = v / dist[..., None]
+    h = caster.closest_hit(
+        jnp.asarray(p.reshape(-1, 3), jnp.float32), jnp.asarray(dv.reshape(-1, 3), jnp.float32)
+    )
+    t = np.where(np.asarray(h.tri) >= 0, np.asarray(h.t), np.inf).reshape(dist.shape)
+    return t >= dist * (1 - 1e-3), dv
+
+
 def _visibility(caster, probe_pos, x, n=None) -> np.ndarray:
-    """(len(x), len(probe_pos)) whether each probe sees each point x (the segment probe → x free up to 0.1 %
-    of its length; from the front side of normal n, when given)."""
+    """(len(x), len(probe_pos)) whether each probe sees each point x (:func:`_probes_see`; from the front
+    side of normal n, when given)."""
     out = np.zeros((len(x), len(probe_pos)), bool)
     for k in range(0, len(probe_pos), 32):
-        p = probe_pos[k : k + 32]
         for a in range(0, len(x), 16384):  # ≤ 0.5 M rays a cast
-            v = x[a : a + 16384, None] - p[None]
-            dist = np.linalg.norm(v, axis=2)
-            dv = v / dist[..., None]
-            origins = np.broadcast_to(p[None], v.shape).reshape(-1, 3)
-            h = caster.closest_hit(
-                jnp.asarray(origins, jnp.float32), jnp.asarray(dv.reshape(-1, 3), jnp.float32)
-            )
-            t = np.where(np.asarray(h.tri) >= 0, np.asarray(h.t), np.inf).reshape(len(v), -1)
-            ok = t >= dist * (1 - 1e-3)
+            xa = x[a : a + 16384]
+            p = np.broadcast_to(probe_pos[None, k : k + 32], (len(xa), len(probe_pos[k : k + 32]), 3))
+            ok, dv = _probes_see(caster, p, xa)
             if n is not None:
                 ok &= np.sum(dv * n[a : a + 16384, None], axis=2) < 0
             out[a : a + 16384, k : k + 32] = ok
@@ -101,15 +107,9 @@ def _points_seen(caster, probe_pos, x, k=16) -> np.ndarray:
     out = np.zeros(len(x), bool)
     _, idx = cKDTree(probe_pos).query(x, k=min(k, len(probe_pos)))
     for a in range(0, len(x), 32768):
-        p = probe_pos[idx[a : a + 32768]]
-        v = x[a : a + 32768, None] - p
-        dist = np.linalg.norm(v, axis=2)
-        h = caster.closest_hit(
-            jnp.asarray(p.reshape(-1, 3), jnp.float32),
-            jnp.asarray((v / dist[..., None]).reshape(-1, 3), jnp.float32),
+        out[a : a + 32768] = _probes_see(caster, probe_pos[idx[a : a + 32768]], x[a : a + 32768])[0].any(
+            axis=1
         )
-        t = np.where(np.asarray(h.tri) >= 0, np.asarray(h.t), np.inf).reshape(dist.shape)
-        out[a : a + 32768] = (t >= dist * (1 - 1e-3)).any(axis=1)
     rest = np.flatnonzero(~out)
     out[rest] = _seen(caster, probe_pos, x[rest])
     return out
@@ -163,14 +163,12 @@ def _coverage(caster, usable, o, d, h, t_exact, rows, lo, hi, n_points, radius) 
     vis = _visibility(caster, usable, x.reshape(-1, 3)).reshape(len(rows), n_points, -1)
     near = _within(usable, x.reshape(-1, 3), radius).reshape(vis.shape)
     hit = np.isfinite(t_exact[rows])
-    end = np.ones((len(rows), 1, len(usable)), bool)  # a miss ends at the box: nothing more to see
+    # The end: a hit, seen from the side the ray comes from; a miss ends at the box, nothing more to see.
+    end, end_near = (np.ones((len(rows), 1, len(usable)), bool) for _ in range(2))
     if hit.any():
         xh, nh = _hit_points(o, d, h, rows[hit])
-        end[hit, 0] = _visibility(caster, usable, xh, nh)
-    vis = np.concatenate([vis, end], axis=1)
-    near = np.concatenate([near, np.ones_like(end)], axis=1)  # the end: any probe that sees it
-    if hit.any():
-        near[hit, -1] = _within(usable, xh, radius)
+        end[hit, 0], end_near[hit, 0] = _visibility(caster, usable, xh, nh), _within(usable, xh, radius)
+    vis, near = np.concatenate([vis, end], axis=1), np.concatenate([near, end_near], axis=1)
 
     def chain(v):
         return (v[:, :-1] & v[:, 1:]).any(axis=2).all(axis=1)
