@@ -12,6 +12,7 @@ import pytest
 from probeplace._core import (
     add_border,
     border_index,
+    fill_border,
     jittered_texel_directions,
     oct_decode,
     oct_encode,
@@ -109,6 +110,25 @@ def test_add_and_strip_border_round_trip(getkey):
     np.testing.assert_array_equal(np.asarray(strip_border(b)), np.asarray(m))
     with pytest.raises((ValueError, TypeError)):  # jaxtyping (tests) or our own check (users)
         add_border(m[:, :5])
+
+
+@pytest.mark.parametrize("res", [2, 5, 8])
+def test_fill_border_is_add_border_on_the_host(res):
+    """``fill_border`` (the bake's host ring fill, in place) against ``add_border`` (every texel gathered):
+    the same bordered maps, bit for bit, for maps without and with channels and of the bake's dtypes."""
+    rng = np.random.default_rng(res)
+    for interior in (
+        rng.normal(size=(3, res, res)).astype(np.float32),
+        rng.integers(-(2**15), 2**15, (3, res, res, 2)).astype(np.int16),
+        rng.random((2, res, res)) < 0.5,
+    ):
+        bordered = np.zeros((len(interior), res + 2, res + 2, *interior.shape[3:]), interior.dtype)
+        bordered[:, 1:-1, 1:-1] = interior
+        channels = interior if interior.ndim == 4 else interior[..., None]
+        want = np.asarray(add_border(jnp.asarray(channels)))
+        got = fill_border(bordered)
+        assert got is bordered and got.dtype == interior.dtype
+        np.testing.assert_array_equal(got, want if interior.ndim == 4 else want[..., 0])
 
 
 def test_bilinear_is_continuous_across_the_folds(getkey):

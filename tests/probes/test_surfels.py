@@ -6,7 +6,14 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from probeplace.probes.tracer._surfels import _bounds, _octahedron_point64, cell_cones
+from probeplace.probes.tracer._surfels import (
+    NEIGHBOURS,
+    _bounds,
+    _octahedron_point64,
+    _pair,
+    cell_cones,
+    neighbour_pairs,
+)
 
 
 def _cell_samples(m: int, rows, cols, k: int, rng) -> np.ndarray:
@@ -85,3 +92,32 @@ def test_plane_bounds_hold_over_the_cell_and_are_tight_when_it_faces_the_probe()
     facing = np.sum(-normal * axis, -1) > np.cos(np.pi / 4)
     assert facing.sum() > 50
     assert (lo[facing] >= 0.95 * r.min(axis=1)[facing]).all()
+
+
+def test_neighbour_pairs_are_each_texels_own_tests():
+    """``neighbour_pairs`` (each pair of texels tested once, read from both) against ``_pair`` (each texel
+    against its neighbour at each of the eight offsets) on a Cornell-box probe's maps, whose blocks give
+    silhouettes and creases of both kinds: the same flags, bit for bit. Run op by op (no jit): then both
+    are the same IEEE operations on swapped operands, which the test is about; compiled, XLA may contract
+    a multiply-add into an FMA in one program and not the other (an ulp at a tolerance's edge)."""
+    import jax
+
+    from probeplace.probes.tracer._trace import _geometry_maps
+    from probeplace.scene import load_scene
+    from tests.probes.test_trace import _bake
+
+    scene = load_scene("cornell_box")
+    lo, hi = np.asarray(scene.bounds[0]), np.asarray(scene.bounds[1])
+    lf = _bake(scene, np.array([lo + (hi - lo) * [0.3, 0.45, 0.6]]), 16)
+    x, n, h, wb = _geometry_maps(lf.distance, lf.normal, lf.far)
+    xb, nb, hb = x[0], n[0], h[0]
+    with jax.disable_jit():
+        pairs = neighbour_pairs(xb, nb, hb, wb, 0.05)
+        assert set(pairs) == set(NEIGHBOURS)
+        for di, dj in NEIGHBOURS:
+            for got, want in zip(pairs[di, dj], _pair(xb, nb, hb, wb, di, dj, 0.05), strict=True):
+                np.testing.assert_array_equal(np.asarray(got), np.asarray(want), err_msg=f"{(di, dj)}")
+        one = np.stack([np.asarray(pairs[o][0]) for o in NEIGHBOURS])
+        concave = np.stack([np.asarray(pairs[o][1]) for o in NEIGHBOURS])
+        assert not one.all() and concave.any()  # silhouettes and concave creases occur
+    assert neighbour_pairs(xb, nb, hb, wb, None) == {}

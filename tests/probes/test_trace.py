@@ -387,8 +387,9 @@ def test_tracer_setup_is_a_few_compiled_programs(room):
         make_tracer(lf, scene.bounds)
     finally:
         monitoring.unregister_event_duration_listener(listener)
-    # the set-up ran through its two programs, not around them
-    assert {"jit(_probe_cells)", "jit(_cell_maps)"} <= set(names), " ".join(sorted(names))
+    # the set-up ran through its four programs, not around them
+    programs = {"jit(_probe_surfels)", "jit(_probe_pairs)", "jit(_probe_cells)", "jit(_cell_maps)"}
+    assert programs <= set(names), " ".join(sorted(names))
     # measured: 25 (the voxel index's reads, the stacking of the rows and the arrays' transfers, the
     # bound codes' table among them, included); eagerly it was ~200
     assert len(names) <= 30, " ".join(sorted(names))
@@ -476,7 +477,13 @@ def test_compact_maps_hold_the_flags_and_bound_the_bounds(occluder):
     changes an answer), the nearest such entry or the next (NumPy's search is the oracle); has-surface is
     ``surfel_r > 0``."""
     from probeplace.probes.tracer._surfels import cell_cones, interleave_quadrants
-    from probeplace.probes.tracer._trace import _bound_codes, _mip_flat, _probe_cells
+    from probeplace.probes.tracer._trace import (
+        _bound_codes,
+        _mip_flat,
+        _probe_cells,
+        _probe_pairs,
+        _probe_surfels,
+    )
 
     scene, lf = occluder
     cfg = TraceConfig()
@@ -498,9 +505,11 @@ def test_compact_maps_hold_the_flags_and_bound_the_bounds(occluder):
     assert np.mean(down[spread] == best_down[spread]) > 0.99 and np.mean(up[spread] == best_up[spread]) > 0.99
     m = tr.march_res
     cones = cell_cones(m), cell_cones(tr.res)
-    kw = dict(sub=cfg.subdivide, tol=cfg.edge_tol, thickness=cfg.thickness)
+    kw = dict(sub=cfg.subdivide, thickness=cfg.thickness)
     for p in range(lf.pos_world.shape[0]):
-        _, _, cells, _ = _probe_cells(lf.distance[p], lf.normal_at(p), lf.far, *cones, **kw)
+        surfels = _probe_surfels(lf.distance[p], lf.normal16[p], lf.far)
+        pairs = _probe_pairs(surfels, tol=cfg.edge_tol)
+        _, _, cells, _ = _probe_cells(lf.distance[p], surfels, pairs, lf.far, *cones, **kw)
         lower, upper, ambiguous = (np.asarray(interleave_quadrants(q)) for q in cells)
         ii, jj = np.meshgrid(np.arange(m), np.arange(m), indexing="ij")
         w = int(tr.row[p])

@@ -57,6 +57,7 @@ _LAZY = {
         (
             "add_border",
             "border_index",
+            "fill_border",
             "dot3",
             "host_rng",
             "jittered_texel_directions",
@@ -143,6 +144,7 @@ if TYPE_CHECKING:  # what static checkers and IDEs see; __getattr__ gives the sa
     from .maths import add_border as add_border
     from .maths import border_index as border_index
     from .maths import dot3 as dot3
+    from .maths import fill_border as fill_border
     from .maths import host_rng as host_rng
     from .maths import jittered_texel_directions as jittered_texel_directions
     from .maths import luminance as luminance

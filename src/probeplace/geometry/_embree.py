@@ -14,12 +14,13 @@ from concurrent.futures import ThreadPoolExecutor
 from typing import ClassVar
 
 import equinox as eqx
+import jax
 import jax.numpy as jnp
 import numpy as np
 from jaxtyping import Array, Bool, Float
 
 from .._core import Hit, ProbeplaceError, Scene
-from ._raycast import AbstractRayCaster, complete_hit
+from ._raycast import AbstractRayCaster, complete_hit, face_normals
 
 
 class EmbreeUnavailableError(ProbeplaceError, ImportError):
@@ -50,7 +51,11 @@ class _EmbreeHandle:
 
 
 def _chunks(n: int, threads: int) -> list[slice]:
-    k = max(1, min(threads, n // 4096 + 1))  # no point in threads for tiny batches
+    """Slices of a batch of ``n`` rays for ``threads`` threads: several a thread (up to 8, each of at least
+    ~16 k rays), taken in turn, so a thread whose rays were cheap (a probe inside a wall) takes more,
+    instead of waiting for the other's half (5 % of the 512² bake's casts, 2 threads); one slice for a
+    tiny batch (no point in threads)."""
+    k = 1 if threads == 1 else max(1, min(8 * threads, n // 16384 + 1))
     edges = np.linspace(0, n, k + 1).astype(int)
     return [slice(a, b) for a, b in itertools.pairwise(edges)]
 
@@ -74,6 +79,7 @@ class EmbreeCaster(AbstractRayCaster):
     jittable: ClassVar[bool] = False  # numpy → Embree → numpy: concrete arrays only
 
     scene: Scene
+    tri_normal: Float[Array, "n_tri 3"]  # the scene's face_normals, for complete_hit
     handle: _EmbreeHandle = eqx.field(static=True)
     threads: int = eqx.field(static=True)
 
@@ -82,6 +88,7 @@ class EmbreeCaster(AbstractRayCaster):
             raise ValueError(f"threads must be >= 1 or None, got {threads}")
         tri = np.asarray(scene.vertices, np.float32)[np.asarray(scene.faces)]
         self.scene = scene
+        self.tri_normal = face_normals(jnp.asarray(scene.vertices)[jnp.asarray(scene.faces)])
         self.handle = _EmbreeHandle(tri)
         self.threads = int(threads or os.cpu_count() or 1)
 
@@ -105,7 +112,7 @@ class EmbreeCaster(AbstractRayCaster):
         if len(parts) == 1:
             res = [one(parts[0])]
         else:
-            with ThreadPoolExecutor(len(parts)) as pool:
+            with ThreadPoolExecutor(min(self.threads, len(parts))) as pool:
                 res = list(pool.map(one, parts))
         if query == "OCCLUDED":
             return np.concatenate(res) if res else np.zeros(0, np.int32)
@@ -126,18 +133,18 @@ class EmbreeCaster(AbstractRayCaster):
         t_max: Float[Array, " n_rays"] | float = jnp.inf,
     ) -> Hit:
         """Nearest intersection with ``0 < t < t_max`` per ray (``tri = -1`` and ``t = inf`` on a miss)."""
-        dtype = jnp.asarray(origins).dtype
-        r = self._run(origins, directions, t_max, "INTERSECT")
-        tri = r["primID"].astype(np.int32)
-        hit = tri >= 0
-        t = np.where(hit, r["tfar"], np.inf)
-        bary = np.where(hit[:, None], np.stack([r["u"], r["v"]], axis=1), 0.0)
-        return complete_hit(
-            self.scene,
-            jnp.asarray(t, dtype),
-            jnp.asarray(np.where(hit, tri, -1), jnp.int32),
-            jnp.asarray(bary, dtype),
+        return self.closest_hit_map(_the_hit, origins, directions, t_max=t_max)
+
+    def closest_hit_map(self, fn, origins, directions, *args, t_max=jnp.inf):
+        """``fn(hit, *args)`` (:meth:`AbstractRayCaster.closest_hit_map`): Embree's raw answers go into one
+        compiled program that completes the hit and applies ``fn``."""
+        # the rays' dtype without a device copy of them (the bake hands over 2 M host rays a batch)
+        dtype = jax.dtypes.canonicalize_dtype(
+            origins.dtype if hasattr(origins, "dtype") else np.asarray(origins).dtype
         )
+        r = self._run(origins, directions, t_max, "INTERSECT")
+        raw = (r["tfar"], r["primID"], r["u"], r["v"])
+        return _complete_map(fn, self.scene, self.tri_normal, *raw, dtype, *args)
 
     def occluded(
         self,
@@ -152,3 +159,18 @@ class EmbreeCaster(AbstractRayCaster):
         """:meth:`occluded` as a host (NumPy) boolean array: no device round trip for host callers."""
         ids = self._run(origins, directions, t_max, "OCCLUDED")
         return np.asarray(ids != -1)
+
+
+def _the_hit(hit: Hit) -> Hit:
+    return hit
+
+
+@eqx.filter_jit
+def _complete_map(fn, scene: Scene, tri_normal, tfar, prim, u, v, dtype, *args):
+    """``fn(hit, *args)`` of the hit Embree answered (``tfar``, ``primID``, ``u``, ``v``; ``primID`` −1 on
+    a miss) in the rays' ``dtype``: one program (``complete_hit``, then ``fn``)."""
+    hit = prim >= 0
+    bary = jnp.where(hit[:, None], jnp.stack([u, v], axis=1), 0.0).astype(dtype)
+    t = jnp.where(hit, tfar, jnp.inf).astype(dtype)
+    tri = jnp.where(hit, prim, -1).astype(jnp.int32)
+    return fn(complete_hit(scene, t, tri, bary, tri_normal), *args)

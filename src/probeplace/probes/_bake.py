@@ -68,6 +68,7 @@ from .._core import (
     check_memory,
     check_target,
     dot3,
+    fill_border,
     jittered_texel_directions,
     next_pow2,
     pack_normal,
@@ -400,12 +401,12 @@ def _warn_probe_layout(pos: np.ndarray, lo: np.ndarray, hi: np.ndarray, what: st
         )
 
 
-@jax.jit  # one program over the batch's rays (issue 33: 512² maps are 2 M rays a batch)
 def _texel_surfels(hit, d, far):
     """(distance, packed normal, back face) of each texel-centre ray's hit: ``far`` and a zero normal on a
     miss. The side the probe sees is the renderer's rule (the geometric normal decides), then the shading
     normal on that side; where interpolation bends it past the ray (grazing texels), the geometric one.
-    Normals are packed here (``_core.pack_normal``), so no float32 normal map is kept."""
+    Normals are packed here (``_core.pack_normal``), so no float32 normal map is kept. Run inside the
+    caster's program (``closest_hit_map``: one program over a batch's 2 M rays at 512², issue 33)."""
     is_hit = hit.tri >= 0
     back = is_hit & (dot3(hit.geo_normal, d) > 0)
     side = jnp.where(back, -1.0, 1.0).astype(d.dtype)[:, None]
@@ -415,31 +416,28 @@ def _texel_surfels(hit, d, far):
 
 
 def _bake_batch(
-    pos: Float[Array, "b 3"],
+    pos: np.ndarray,
     caster,
     radiance_fn: RadianceFn,
     res: int,
     geo_res: int,
+    centre_dirs: np.ndarray,
     n_sub: int,
     far: float,
     key: jax.Array,
 ):
-    b = pos.shape[0]
-    # the texel-centre rays built on the host (one array transfer each, no program)
-    centre_dirs = np.broadcast_to(np.asarray(texel_directions(geo_res)), (b, geo_res, geo_res, 3)).reshape(
-        -1, 3
-    )
-    origins = np.repeat(np.asarray(pos, np.float32), geo_res * geo_res, axis=0)
-    hit = caster.closest_hit(jnp.asarray(origins), jnp.asarray(centre_dirs))
+    """One batch of probes (``pos``, (b, 3)): the geometry maps' texel-centre surfels as flat (b·G²)
+    arrays (distance, packed normal, back face), then the radiance maps. ``centre_dirs``: the G² texel
+    directions repeated for a full batch, built once a bake (a shorter last batch reads its head); the
+    rays stay host (NumPy) arrays, which Embree reads as they are and a JAX caster converts once."""
+    b, g2 = pos.shape[0], geo_res * geo_res
+    dirs = centre_dirs[: b * g2]
+    origins = np.repeat(pos, g2, axis=0)
     # normals packed batch by batch (a 1024-probe set at 512² would be 3 GiB of float32 normals)
-    dist, nrm, back = _texel_surfels(hit, jnp.asarray(centre_dirs), jnp.float32(far))
-    distance = np.asarray(dist).reshape(b, geo_res, geo_res)
-    normal = np.asarray(nrm).reshape(b, geo_res, geo_res, 2)
-    backface = np.asarray(back).reshape(b, geo_res, geo_res)
-
+    geometry = caster.closest_hit_map(_texel_surfels, origins, dirs, dirs, jnp.float32(far))
     k_dir, k_rad = jax.random.split(key)
-    radiance, emission, every_lobe = texel_radiance(pos, radiance_fn, res, n_sub, k_dir, k_rad)
-    return radiance, emission, every_lobe, normal, distance, backface
+    radiance = texel_radiance(jnp.asarray(pos), radiance_fn, res, n_sub, k_dir, k_rad)
+    return geometry, radiance
 
 
 def texel_radiance(
@@ -547,27 +545,30 @@ def bake_probes(
         f"probes_per_batch={bsz}",
         "lower radiance_res, geometry_res, n_sub or probes_per_batch",
     )
+    # The bordered geometry maps, their interiors written batch by batch and their rings filled at the end
+    # (issue 33: concatenating and bordering 9 bytes a texel took ~2 s of a 128-probe bake at 512²), and
+    # the texel-centre directions, built once for a full batch.
+    gb = geo_res + 2
+    distance_b = np.empty((n, gb, gb), np.float32)
+    normal_b = np.empty((n, gb, gb, 2), np.int16)
+    backface_b = np.empty((n, gb, gb), bool)
+    distance, normal, backface = (a[:, 1:-1, 1:-1] for a in (distance_b, normal_b, backface_b))
+    texel_dirs = np.asarray(texel_directions(geo_res), np.float32).reshape(-1, 3)
+    centre_dirs = np.tile(texel_dirs, (min(bsz, n), 1))
     parts: list[tuple] = []
     keys = jax.random.split(key, (n + bsz - 1) // bsz)
     bar = progress_bar(total=n, desc=f"bake {res}² probes", unit="probe", disable=not config.progress)
     for i, start in enumerate(range(0, n, bsz)):
-        parts.append(
-            _bake_batch(
-                jnp.asarray(pos[start : start + bsz]),
-                caster,
-                radiance_fn,
-                res,
-                geo_res,
-                config.n_sub,
-                far,
-                keys[i],
-            )
+        rows = slice(start, min(start + bsz, n))
+        geometry, radiance = _bake_batch(
+            pos[rows], caster, radiance_fn, res, geo_res, centre_dirs, config.n_sub, far, keys[i]
         )
-        bar.update(min(bsz, n - start))
+        for out, g in zip((distance, normal, backface), geometry, strict=True):
+            out[rows] = np.asarray(g).reshape(out[rows].shape)
+        parts.append(radiance)
+        bar.update(rows.stop - start)
     bar.close()
-    radiance, emission, every_lobe, normal, distance, backface = (
-        np.concatenate(x) for x in zip(*parts, strict=True)
-    )
+    radiance, emission, every_lobe = (np.concatenate(x) for x in zip(*parts, strict=True))
     inside = _inside(scene, pos, geo_res, distance, far, backface, caster, config)
     if inside.any():
         log.warning(
@@ -579,18 +580,20 @@ def bake_probes(
     # surfaces' specular reflection too (a furnace's walls: −3 % of its diffuse indirect without it).
     irr = irradiance_map(f32(every_lobe), config.irradiance_res)
     mom = distance_moments(f32(distance), config.moments_res, config.moment_power)
+    for a in (distance_b, normal_b, backface_b):
+        fill_border(a)
     return LightFieldProbes(
         pos_world=f32(pos),
         active=jnp.asarray(probes.active),
         inside=jnp.asarray(inside),
         radiance=add_border(f32(radiance)),
         emission=add_border(f32(emission)),
-        normal16=add_border(jnp.asarray(normal)),
-        distance=add_border(f32(distance)[..., None])[..., 0],
+        normal16=jnp.asarray(normal_b),
+        distance=jnp.asarray(distance_b),
         irradiance=add_border(irr),
         moments=add_border(mom),
         far=jnp.float32(far),
-        backface=add_border(f32(backface)[..., None])[..., 0] > 0.5,
+        backface=jnp.asarray(backface_b),
         bake=_settings(scene, radiance_fn, res, config.n_sub, key),
     )
 

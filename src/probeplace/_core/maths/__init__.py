@@ -22,6 +22,7 @@ _LAZY = {
         (
             "add_border",
             "border_index",
+            "fill_border",
             "jittered_texel_directions",
             "oct_decode",
             "oct_encode",
@@ -53,6 +54,7 @@ if TYPE_CHECKING:  # what static checkers and IDEs see; __getattr__ gives the sa
     from ._math import safe_sqrt as safe_sqrt
     from ._octahedral import add_border as add_border
     from ._octahedral import border_index as border_index
+    from ._octahedral import fill_border as fill_border
     from ._octahedral import jittered_texel_directions as jittered_texel_directions
     from ._octahedral import oct_decode as oct_decode
     from ._octahedral import oct_encode as oct_encode

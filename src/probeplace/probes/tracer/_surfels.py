@@ -118,24 +118,36 @@ def cell_cones(m: int) -> Float[Array, "5 m m"]:
     return jnp.asarray(_cell_cones_host(m))
 
 
-def _bounds(x, n, has, cone, thickness, big):
-    """(lower, upper) bounds of each cell's surfel plane (points ``x``, normals ``n``) over the cell's cone
-    ``cone`` (:func:`cell_cones`): the lower bound of its radial distance, and the radial distance beyond
-    which a point is behind the plane by more than τ = thickness·|x| (module docstring); ``big`` where
-    there is no surface or no bound. Rounded outward by 1e-4 (float32 arithmetic here and in the march)."""
-    axis, cos_t, sin_t = jnp.moveaxis(cone[:3], 0, -1), cone[3], cone[4]
+def _planes(x, n, thickness):
+    """Per surfel, what :func:`_cone_bounds` reads of its plane (points ``x``, normals ``n``): the plane's
+    distance d from the probe, the sign of x·n and |n| (to turn n toward x), and the thickness τ =
+    thickness·|x|. Computed once a texel: a neighbour's plane is bounded over several cones (issue 33)."""
     xn = dot3(x, n)
     n_len = jnp.maximum(norm3(n), 1e-12)
-    d = jnp.abs(xn) / n_len  # the plane's distance from the probe
-    cos_a = jnp.clip(jnp.sign(xn) * dot3(axis, n) / n_len, -1.0, 1.0)  # axis vs n̂ toward x
+    return jnp.abs(xn) / n_len, jnp.sign(xn), n_len, thickness * norm3(x)
+
+
+def _cone_bounds(planes, n, has, cone, big):
+    """(lower, upper) bounds of each cell's surfel plane (:func:`_planes` of it, normals ``n``) over the
+    cell's cone ``cone`` (:func:`cell_cones`): the lower bound of its radial distance, and the radial
+    distance beyond which a point is behind the plane by more than τ (module docstring); ``big`` where
+    there is no surface or no bound. Rounded outward by 1e-4 (float32 arithmetic here and in the march)."""
+    d, sign, n_len, tau = planes
+    axis, cos_t, sin_t = jnp.moveaxis(cone[:3], 0, -1), cone[3], cone[4]
+    cos_a = jnp.clip(sign * dot3(axis, n) / n_len, -1.0, 1.0)  # axis vs n̂ toward x
     sin_a = jnp.sqrt(jnp.maximum(1.0 - cos_a * cos_a, 0.0))
     max_cos = jnp.where(cos_a >= cos_t, 1.0, cos_a * cos_t + sin_a * sin_t)  # cos(max(α − θ, 0))
     min_cos = cos_a * cos_t - sin_a * sin_t  # cos(α + θ); ≤ 0 when the cone reaches the plane's horizon
     lo = jnp.where(max_cos > 1e-6, d / jnp.maximum(max_cos, 1e-6), big) * (1 - 1e-4)
     # Behind by τ in signed plane distance is (ω·n̂)·(ρ − r(ω)) > τ, i.e. ρ > (d + τ) / (ω·n̂).
-    tau = thickness * norm3(x)
     hi = jnp.where(min_cos > 1e-6, (d + tau) / jnp.maximum(min_cos, 1e-6), big) * (1 + 1e-4)
     return jnp.where(has, jnp.minimum(lo, big), big), jnp.where(has, jnp.minimum(hi, big), big)
+
+
+def _bounds(x, n, has, cone, thickness, big):
+    """:func:`_cone_bounds` of the planes through ``x`` with normals ``n`` (``thickness``: τ's fraction of
+    |x|)."""
+    return _cone_bounds(_planes(x, n, thickness), n, has, cone, big)
 
 
 def crease(xa, na, wa, xx, nx, wx, tol: float) -> tuple[Array, Array]:
@@ -151,9 +163,23 @@ def crease(xa, na, wa, xx, nx, wx, tol: float) -> tuple[Array, Array]:
     return concave, convex
 
 
+def _one_surface(xa, na, ha, wa, xx, nx, hx, wx, tol: float) -> tuple[Array, Array]:
+    """(one surface?, a concave crease?) of surfels A and X that both have a surface (module docstring):
+    points, normals turned toward the probe, has-surface flags and sample directions. Symmetric in A and
+    X, to the bit: swapping them swaps the two operands of every sum, min and comparison pair."""
+    wm = wa + wx
+    wm = wm / jnp.maximum(norm3(wm), 1e-12)[..., None]
+    pa_m, px_m = plane_distance(xa, na, wm), plane_distance(xx, nx, wm)
+    smooth = jnp.isfinite(pa_m) & jnp.isfinite(px_m)
+    smooth = smooth & (jnp.abs(pa_m - px_m) <= tol * jnp.minimum(pa_m, px_m))
+    concave, convex = crease(xa, na, wa, xx, nx, wx, tol)
+    both = ha & hx
+    return both & (smooth | concave | convex), both & concave
+
+
 def _pair(xb, nb, hb, wb, di: int, dj: int, tol: float) -> tuple[Bool[Array, "r r"], Bool[Array, "r r"]]:
     """Per interior texel and its neighbour at offset (di, dj): (one surface?, a concave crease of two
-    surfaces?) (module docstring).
+    surfaces?) (module docstring); a texel whose own ray escapes is one surface with every neighbour.
 
     Args:
         xb, nb, hb, wb: ONE probe's bordered (R+2)² maps: surfel points (probe-relative), normals turned
@@ -163,16 +189,42 @@ def _pair(xb, nb, hb, wb, di: int, dj: int, tol: float) -> tuple[Bool[Array, "r 
     r = xb.shape[0] - 2
     own = lambda a: a[1 : r + 1, 1 : r + 1]
     nbr = lambda a: a[1 + di : r + 1 + di, 1 + dj : r + 1 + dj]
-    xa, na, ha, wa = own(xb), own(nb), own(hb), own(wb)
-    xx, nx, hx, wx = nbr(xb), nbr(nb), nbr(hb), nbr(wb)
-    wm = wa + wx
-    wm = wm / jnp.maximum(norm3(wm), 1e-12)[..., None]
-    pa_m, px_m = plane_distance(xa, na, wm), plane_distance(xx, nx, wm)
-    smooth = jnp.isfinite(pa_m) & jnp.isfinite(px_m)
-    smooth = smooth & (jnp.abs(pa_m - px_m) <= tol * jnp.minimum(pa_m, px_m))
-    concave, convex = crease(xa, na, wa, xx, nx, wx, tol)
-    both = ha & hx
-    return (both & (smooth | concave | convex)) | ~ha, both & concave
+    one, concave = _one_surface(own(xb), own(nb), own(hb), own(wb), nbr(xb), nbr(nb), nbr(hb), nbr(wb), tol)
+    return one | ~own(hb), concave
+
+
+#: One offset of each opposite pair in :data:`NEIGHBOURS`: the test of a texel and its neighbour at the
+#: other offset is this one's, read from the neighbour (:func:`_pairs`).
+_HALF_NEIGHBOURS = ((0, 1), (1, -1), (1, 0), (1, 1))
+
+
+def neighbour_pairs(xb, nb, hb, wb, tol: float | None) -> dict[tuple[int, int], tuple[Array, Array]]:
+    """:func:`_pair` for every offset of :data:`NEIGHBOURS` (empty for ``tol`` None: no ambiguity test),
+    with half the tests (issue 33: they were three quarters of ``make_tracer``): :func:`_one_surface` is
+    symmetric, so each pair of bordered texels (t, t + o) is tested once, for o in
+    :data:`_HALF_NEIGHBOURS`, and serves t at offset o and t + o at −o. The border ring holds the texels
+    across the octahedral fold, so a pair across it is a pair of the bordered grid like any other.
+
+    Call it in a compiled program of its own and hand the result to :func:`probe_cells_quadrants`: in one
+    program with the bounds, XLA:CPU fused each test into every consumer of the ambiguity it decides and
+    computed it there again (45 ms a probe at 512² against 12 + 19 ms apart)."""
+    if tol is None:
+        return {}
+    rb, r = xb.shape[0], xb.shape[0] - 2
+    out = {}
+    for di, dj in _HALF_NEIGHBOURS:
+        # s[i, j]: bordered texels (i, j + c) and (i + di, j + c + dj), c = max(0, −dj), every such pair
+        c = max(0, -dj)
+        first = [a[: rb - di, c : rb - max(0, dj)] for a in (xb, nb, hb, wb)]
+        second = [a[di:, c + dj : rb + min(0, dj)] for a in (xb, nb, hb, wb)]
+        one, concave = _one_surface(*first, *second, tol)
+        escaped = ~hb[1 : r + 1, 1 : r + 1]
+        # the interior texels (bordered 1 … r) as the first of a pair, then as the second
+        rows, cols = slice(1, r + 1), slice(1 - c, r + 1 - c)
+        out[di, dj] = one[rows, cols] | escaped, concave[rows, cols]
+        rows, cols = slice(1 - di, r + 1 - di), slice(1 - dj - c, r + 1 - dj - c)
+        out[-di, -dj] = one[rows, cols] | escaped, concave[rows, cols]
+    return out
 
 
 def _uses(sub: int, di: int, dj: int, m: int) -> Array:
@@ -185,7 +237,7 @@ def _uses(sub: int, di: int, dj: int, m: int) -> Array:
     return row & col
 
 
-def probe_cells_quadrants(xb, nb, hb, wb, cones_cells, cones_texels, *, sub, tol, thickness, big):
+def probe_cells_quadrants(xb, nb, hb, pairs, cones_cells, cones_texels, *, sub, thickness, big):
     """:func:`probe_cells_reference`, computed per cell quadrant (issue 33): lists of sub² (R, R) maps
     (:func:`interleave_quadrants` makes each the (m, m) cell map). The cells of one quadrant
     (row and column parity ``qr``, ``qc``) form an R×R grid aligned with the texels, so every cell-level
@@ -193,36 +245,36 @@ def probe_cells_quadrants(xb, nb, hb, wb, cones_cells, cones_texels, *, sub, tol
     scatter). A neighbour's plane bounds only the cells on its side of the texel (one quadrant for a
     diagonal neighbour, two for an edge one), so its cell-level (concave-crease partner) bound is
     evaluated on those quadrants only: 12 instead of 32 bound evaluations per texel at ``sub`` = 2. Same
-    values: each cell's bound is the minimum of the same bounds."""
+    values: each cell's bound is the minimum of the same bounds. ``pairs``: :func:`neighbour_pairs` of the
+    same maps (empty: no ambiguity test)."""
     r = xb.shape[0] - 2
     own = lambda a: a[1 : r + 1, 1 : r + 1]
     nbr = lambda a, di, dj: a[1 + di : r + 1 + di, 1 + dj : r + 1 + dj]
     quads = [(qr, qc) for qr in range(sub) for qc in range(sub)]
     cone_q = {q: cones_cells[:, q[0] :: sub, q[1] :: sub] for q in quads}
-    x, n, h = own(xb), own(nb), own(hb)
+    planes = _planes(xb, nb, thickness)  # once a texel: each neighbour's plane is bounded over 2-3 cones
+    own_planes = tuple(own(a) for a in planes)
     lower = {q: [] for q in quads}  # per quadrant: the candidate bounds, reduced once at the end
     upper = {q: [] for q in quads}
     for q in quads:
-        lo, hi = _bounds(x, n, h, cone_q[q], thickness, big)
+        lo, hi = _cone_bounds(own_planes, own(nb), own(hb), cone_q[q], big)
         lower[q].append(lo)
         upper[q].append(hi)
     ambiguous = {q: jnp.zeros((r, r), bool) for q in quads}
-    if tol is not None:
-        pairs = {(di, dj): _pair(xb, nb, hb, wb, di, dj, tol) for di, dj in NEIGHBOURS}
-        for (di, dj), (one, _) in pairs.items():
-            for q in _quadrants(sub, di, dj):
-                ambiguous[q] = ambiguous[q] | ~one
-        for (di, dj), (_, concave) in pairs.items():
-            xn, nn, hn = nbr(xb, di, dj), nbr(nb, di, dj), nbr(hb, di, dj)
-            lo, hi = _bounds(xn, nn, hn, cones_texels, thickness, big)
-            for q in _quadrants(sub, di, dj):
-                amb = ambiguous[q]
-                lower[q].append(jnp.where(amb, lo, big))
-                upper[q].append(jnp.where(amb, hi, big))
-                # A concave crease partner of a one-surface cell bounds the cell too
-                # (probe_cells_reference), over the cell's own cone (at sub = 1 the cell is the texel).
-                cell_lo = lo if sub == 1 else _bounds(xn, nn, hn, cone_q[q], thickness, big)[0]
-                lower[q].append(jnp.where(~amb & concave, cell_lo, big))
+    for (di, dj), (one, _) in pairs.items():
+        for q in _quadrants(sub, di, dj):
+            ambiguous[q] = ambiguous[q] | ~one
+    for (di, dj), (_, concave) in pairs.items():
+        pn, nn, hn = tuple(nbr(a, di, dj) for a in planes), nbr(nb, di, dj), nbr(hb, di, dj)
+        lo, hi = _cone_bounds(pn, nn, hn, cones_texels, big)
+        for q in _quadrants(sub, di, dj):
+            amb = ambiguous[q]
+            lower[q].append(jnp.where(amb, lo, big))
+            upper[q].append(jnp.where(amb, hi, big))
+            # A concave crease partner of a one-surface cell bounds the cell too
+            # (probe_cells_reference), over the cell's own cone (at sub = 1 the cell is the texel).
+            cell_lo = lo if sub == 1 else _cone_bounds(pn, nn, hn, cone_q[q], big)[0]
+            lower[q].append(jnp.where(~amb & concave, cell_lo, big))
     lower = {q: jnp.min(jnp.stack(v), axis=0) for q, v in lower.items()}
     upper = {q: jnp.min(jnp.stack(v), axis=0) for q, v in upper.items()}
     # Lists, not stacked: a stack fused the quadrants' computation into its copy as the interleave did.
@@ -243,8 +295,9 @@ def interleave_quadrants(quadrants: list[Array]) -> Array:
 def probe_cells(xb, nb, hb, wb, cones_cells, cones_texels, *, sub, tol, thickness, big):
     """:func:`probe_cells_quadrants` as (m, m) cell maps (lower bound, upper bound, ambiguous): the form
     :func:`probe_cells_reference` computes."""
+    pairs = neighbour_pairs(xb, nb, hb, wb, tol)
     out = probe_cells_quadrants(
-        xb, nb, hb, wb, cones_cells, cones_texels, sub=sub, tol=tol, thickness=thickness, big=big
+        xb, nb, hb, pairs, cones_cells, cones_texels, sub=sub, thickness=thickness, big=big
     )
     return tuple(interleave_quadrants(a) for a in out)
 

@@ -80,13 +80,14 @@ from ..._core import (
     dot3,
     oct_encode,
     texel_directions,
+    unpack_normal,
 )
 from ..._core.runtime import check_settings, progress_bar, setting
 from .._bake import _warn_probe_layout
 from ._index import GridIndex, VoxelIndex, grid_index, nearest_index, voxel_index
 from ._march import _candidates, _partners, trace_probe
 from ._status import TraceStatus
-from ._surfels import cell_cones, interleave_quadrants, probe_cells_quadrants
+from ._surfels import cell_cones, interleave_quadrants, neighbour_pairs, probe_cells_quadrants
 
 _FALLBACK_POOL = 32  # nearest probes a fallback pick tests (per voxel of ``nearest_index``)
 HIERARCHIES = ("hiz", "two_level", "flat")
@@ -359,24 +360,42 @@ def _mip_flat(level: Shaped[Array, "p m m"], how: str) -> Shaped[Array, "p k"]:
     return jnp.concatenate(levels, axis=1)
 
 
-@partial(jax.jit, static_argnames=("sub", "tol", "thickness"))
-def _probe_cells(distance, normal, far, cones_cells, cones_texels, *, sub: int, tol: float, thickness: float):
-    """ONE probe's bordered surfel distances (0: no surface) and normals, and its march cells' (lower
-    bound, upper bound, ambiguous) per cell quadrant (``_surfels.probe_cells_quadrants``), as one compiled
-    program. The cells' and texels' cones (``_surfels.cell_cones``) are arguments, computed once per
-    resolution for all probes."""
+@jax.jit
+def _probe_surfels(distance, normal16, far):
+    """ONE probe's bordered surfels from its baked maps (normals packed, ``_core.pack_normal``): points,
+    normals as the march reads them, has-surface flags, sample directions (:func:`_geometry_maps`). A
+    program of its own: fused into the one-surface tests that read them, they were computed again for
+    each (30 ms a probe at 512², 7 + 10 ms apart)."""
+    normal = unpack_normal(normal16, distance >= far)
     xb, nb, hb, wb = _geometry_maps(distance[None], normal[None], far)
     # The march reads bfloat16 normals (LightFieldTracer.surfel_n): bound the planes it will test.
     nb = nb.astype(jnp.bfloat16).astype(jnp.float32)
+    return xb[0], nb[0], hb[0], wb
+
+
+@partial(jax.jit, static_argnames=("tol",))
+def _probe_pairs(surfels, *, tol: float | None):
+    """ONE probe's one-surface tests of neighbouring texels (``_surfels.neighbour_pairs``, which says why
+    this is a program of its own) from its :func:`_probe_surfels`."""
+    return neighbour_pairs(*surfels, tol)
+
+
+@partial(jax.jit, static_argnames=("sub", "thickness"))
+def _probe_cells(distance, surfels, pairs, far, cones_cells, cones_texels, *, sub: int, thickness: float):
+    """ONE probe's bordered surfel distances (0: no surface) and normals, and its march cells' (lower
+    bound, upper bound, ambiguous) per cell quadrant (``_surfels.probe_cells_quadrants``), from its
+    :func:`_probe_surfels` and :func:`_probe_pairs`. The cells' and texels' cones
+    (``_surfels.cell_cones``) are arguments, computed once per resolution for all probes."""
+    xb, nb, hb, wb = surfels
     big = 4.0 * jnp.asarray(far, jnp.float32)
     cells = probe_cells_quadrants(
-        xb[0], nb[0], hb[0], wb, cones_cells, cones_texels, sub=sub, tol=tol, thickness=thickness, big=big
+        xb, nb, hb, pairs, cones_cells, cones_texels, sub=sub, thickness=thickness, big=big
     )
     # Stored compactly (LightFieldTracer): the radial distance, not the point, 0 for no surface (a hit at
     # the probe's centre, never baked, would read as none: kept above 0); bfloat16 normals.
     dist = jnp.maximum(jnp.asarray(distance, jnp.float32), jnp.finfo(jnp.float32).tiny)
-    radial = jnp.where(hb[0], dist, 0.0)
-    return radial, _bf16_bits(nb[0]), cells, wb
+    radial = jnp.where(hb, dist, 0.0)
+    return radial, _bf16_bits(nb), cells, wb
 
 
 def _bf16_bits(x):
@@ -451,15 +470,18 @@ def _cell_maps(lower_q, upper_q, ambiguous_q, table):
 
 
 def _probe_maps(
-    distance, normal, far, cones_cells, cones_texels, table, *, sub: int, tol: float, thickness: float
+    distance, normal16, far, cones_cells, cones_texels, table, *, sub: int, tol: float, thickness: float
 ):
-    """ONE probe's tracer arrays from its baked maps (two compiled programs; issue 32: eagerly, the set-up
-    was ~200 small programs; one probe at a time, so any probe count reuses them): bordered surfel
+    """ONE probe's tracer arrays from its baked maps (four compiled programs; issue 32: eagerly, the
+    set-up was ~200 small programs; one probe at a time, so any probe count reuses them): bordered surfel
     distances, normals, the ambiguous cells' bits, and the bound pyramids' codes
     (:class:`LightFieldTracer`'s layout, the bounds as codes of ``table``); last, the bordered texel
     directions (the same for every probe)."""
-    kw = dict(sub=sub, tol=tol, thickness=thickness)
-    rb, nb, cells, directions = _probe_cells(distance, normal, far, cones_cells, cones_texels, **kw)
+    surfels = _probe_surfels(distance, normal16, far)
+    pairs = _probe_pairs(surfels, tol=tol)
+    rb, nb, cells, directions = _probe_cells(
+        distance, surfels, pairs, far, cones_cells, cones_texels, sub=sub, thickness=thickness
+    )
     return rb, nb, *_cell_maps(*cells, table), directions
 
 
@@ -520,7 +542,7 @@ def _all_probe_maps(
     out = directions = None
     for i, p in enumerate(keep):
         # one probe's normals unpacked at a time (a 1024-probe set at 512² would be 3 GiB as float32)
-        *arrays, directions = _probe_maps(lf.distance[p], lf.normal_at(p), lf.far, *cones, table, **kw)
+        *arrays, directions = _probe_maps(lf.distance[p], lf.normal16[p], lf.far, *cones, table, **kw)
         if out is None:
             out = _first_rows(tuple(arrays), len(keep))
         else:
