@@ -88,7 +88,7 @@ class EmbreeCaster(AbstractRayCaster):
             raise ValueError(f"threads must be >= 1 or None, got {threads}")
         tri = np.asarray(scene.vertices, np.float32)[np.asarray(scene.faces)]
         self.scene = scene
-        self.tri_normal = face_normals(jnp.asarray(scene.vertices)[jnp.asarray(scene.faces)])
+        self.tri_normal = face_normals(tri)
         self.handle = _EmbreeHandle(tri)
         self.threads = int(threads or os.cpu_count() or 1)
 

@@ -46,13 +46,13 @@ class AbstractRayCaster(eqx.Module):
     ) -> Hit:
         """Nearest intersection with ``0 < t < t_max`` per ray (``tri = -1`` and ``t = inf`` on a miss)."""
 
-    def closest_hit_map(self, fn, origins, directions, *args):
+    def closest_hit_map(self, fn, origins, directions, *args, t_max=jnp.inf):
         """``fn(hit, *args)`` of :meth:`closest_hit`'s ``hit``, in one compiled program with the hit's
         completion where the caster can (a host caster: Embree; a jittable one runs it under the caller's
         jit as it is). ``fn`` is a module-level function (compiled programs are kept per function): the
         bake reduces 2 M hits a batch to what its maps store, and the hit's unused fields (material,
         barycentrics) are never written (issue 33)."""
-        return _closest_hit_map(self, fn, origins, directions, *args)
+        return _closest_hit_map(self, fn, origins, directions, t_max, *args)
 
     @abc.abstractmethod
     def occluded(
@@ -85,11 +85,12 @@ class AbstractJaxRayCaster(AbstractRayCaster):
 
 
 @eqx.filter_jit
-def _closest_hit_map(caster: AbstractRayCaster, fn, origins, directions, *args):
+def _closest_hit_map(caster: AbstractRayCaster, fn, origins, directions, t_max, *args):
     """:meth:`AbstractRayCaster.closest_hit_map` of a jittable caster: the query and ``fn`` in one program."""
-    return fn(caster.closest_hit(origins, directions), *args)
+    return fn(caster.closest_hit(origins, directions, t_max), *args)
 
 
+@jax.jit  # one program per triangle count: eagerly, a caster's table cost ~0.5 s of small compiles a scene
 def face_normals(corners: Float[Array, "n 3 3"]) -> Float[Array, "n 3"]:
     """Unit front-face normals of triangles given by their corners (counter-clockwise seen from the front)."""
     return safe_normalize(jnp.cross(corners[:, 1] - corners[:, 0], corners[:, 2] - corners[:, 0]))
