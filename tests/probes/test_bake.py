@@ -19,7 +19,7 @@ from probeplace._core import (
     strip_border,
     texel_directions,
 )
-from probeplace.geometry import BruteForceCaster
+from probeplace.geometry import BruteForceCaster, EmbreeCaster
 from probeplace.probes import (
     BakeConfig,
     bake_depth_for,
@@ -68,14 +68,17 @@ def _ray_box_exit(o, d, lo, hi):
     return t.min(axis=-1)
 
 
-def test_bake_geometry_maps_match_closed_form(room, getkey):
+@pytest.mark.parametrize("caster", ["brute", "embree"])
+def test_bake_geometry_maps_match_closed_form(room, getkey, caster):
+    """The texel rays go in 4×4 tiles (Embree's coherent packets where they are available): each map
+    texel still holds its own direction's hit."""
     p = np.array([[3.0, 2.0, 3.5]], np.float32)  # in the room, away from the block's shadow cone? no matter
     probes = ProbeSet(pos_world=jnp.asarray(p), active=jnp.ones(1, bool))
     cfg = BakeConfig(radiance_res=16, irradiance_res=4, moments_res=4, n_sub=1, progress=False)
     lf = bake_probes(
         room,
         probes,
-        caster=BruteForceCaster(room),
+        caster=BruteForceCaster(room) if caster == "brute" else EmbreeCaster(room),
         radiance_fn=_constant_radiance(0.25),
         key=getkey(),
         config=cfg,
@@ -130,6 +133,19 @@ def test_geometry_maps_have_their_own_resolution(room, getkey):
     np.testing.assert_array_equal(np.asarray(r_split.status), np.asarray(r_same.status))
     np.testing.assert_array_equal(np.asarray(r_split.t), np.asarray(r_same.t))
     assert np.asarray(r_split.hit).mean() > 0.5  # the rays do hit walls: the comparison has content
+
+
+@pytest.mark.parametrize("g", [4, 8, 12, 6, 5])
+def test_tile_order_round_trips(g):
+    """The bake's tile order (4×4 tiles, or rows where G is no multiple of 4) is a permutation of the
+    texels, undone by ``_from_tiles`` for several probes at once, with channels."""
+    from probeplace.probes._bake import _from_tiles, _to_tiles
+
+    maps = np.arange(3 * g * g * 2).reshape(3, g, g, 2)
+    flat = np.concatenate([_to_tiles(m) for m in maps])
+    np.testing.assert_array_equal(_from_tiles(flat, 3, g), maps)
+    if g % 4 == 0:  # the first 16 rays are the top-left 4×4 tile
+        np.testing.assert_array_equal(np.sort(flat[:16, 0]), np.sort(maps[0, :4, :4, 0].ravel()))
 
 
 def test_probe_inside_a_solid_is_flagged(room, getkey):

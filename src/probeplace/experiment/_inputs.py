@@ -46,7 +46,10 @@ from urllib.parse import unquote
 #: and its surface shell is half as thick (``TraceConfig.thickness`` 1.5 %): glossy estimates move (issue 33).
 #: 5 (2026-12-05): a concave-crease partner is a neighbour whose normal differs from the surfel's by more
 #: than the shell allows (``_march._partners``): rays near one flat surface's texels resolve (issue 33).
-RESULTS_VERSION = 5
+#: 6 (2026-12-05): the geometry bake casts its texel rays in Embree's 16-ray packets where the compiled
+#: loop exists (``geometry/_embree_packets.py``): distances move by a few ulps, a few texels' hits on
+#: edges and ties (issue 33).
+RESULTS_VERSION = 6
 
 #: Input keys recorded but not compared (flattened, as the refusal names them).
 NOT_COMPARED = ("scene.path",)

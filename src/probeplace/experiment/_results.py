@@ -105,6 +105,8 @@ def environment() -> dict:
         git = {"revision": rev.stdout.strip() or None, "dirty": bool(dirty.stdout.strip())}
     except (OSError, subprocess.SubprocessError):
         git = {"revision": None, "dirty": None}
+    from ..geometry import embree_packets_available
+
     dev = jax.devices()[0]
     return {
         "python": platform.python_version(),
@@ -115,4 +117,6 @@ def environment() -> dict:
         "git": git,
         "device": {"platform": dev.platform, "kind": getattr(dev, "device_kind", str(dev))},
         "cpu_count": os.cpu_count(),
+        # the geometry bake's coherent rays go in Embree's packets where the compiled loop exists
+        "embree_packets": embree_packets_available(),
     }

@@ -28,3 +28,4 @@ from ._casters import BVHCaster as BVHCaster
 from ._casters import make_caster as make_caster
 from ._embree import EmbreeCaster as EmbreeCaster
 from ._embree import EmbreeUnavailableError as EmbreeUnavailableError
+from ._embree_packets import embree_packets_available as embree_packets_available

@@ -3,13 +3,16 @@
 Host code: queries go numpy → Embree → numpy, so :class:`EmbreeCaster` is *not* jittable, differentiable
 or vmappable (call it outside ``jax.jit``; use :class:`~probeplace.geometry.BVHCaster` inside). embreex's
 ``run`` casts one ray after another on the calling thread; ``threads > 1`` splits a batch into chunks cast
-from a thread pool (embreex releases the GIL while it casts: measured 1.5× on 2 cores).
+from a thread pool (embreex releases the GIL while it casts: measured 1.5× on 2 cores). Coherent rays
+(``closest_hit_map(..., coherent=True)``: the geometry bake's) go in Embree's 16-ray packets where they
+are available (``_embree_packets``).
 """
 
 from __future__ import annotations
 
 import itertools
 import os
+import threading
 from concurrent.futures import ThreadPoolExecutor
 from typing import ClassVar
 
@@ -20,6 +23,8 @@ import numpy as np
 from jaxtyping import Array, Bool, Float
 
 from .._core import Hit, ProbeplaceError, Scene
+from ._embree_packets import W as _PACKET
+from ._embree_packets import packet_scene
 from ._raycast import AbstractRayCaster, complete_hit, face_normals
 
 
@@ -44,19 +49,32 @@ class _EmbreeHandle:
 
     def __init__(self, triangles: np.ndarray):
         rtcore_scene, TriangleMesh = _import_embree()
+        self.triangles = np.ascontiguousarray(triangles, np.float32)
         self.scene = rtcore_scene.EmbreeScene()
-        TriangleMesh(self.scene, np.ascontiguousarray(triangles, np.float32))
+        TriangleMesh(self.scene, self.triangles)
         # embreex commits (builds its BVH) on the first query: do it now so query timings are queries
         self.scene.run(np.zeros((1, 3), np.float32), np.ones((1, 3), np.float32), output=1)
+        self._packets_lock = threading.Lock()
+        self._packets: list = []  # [PacketScene or None], built on the first coherent query
+
+    def packets(self):
+        """The scene for Embree's packets (``_embree_packets``), built once on first use; ``None`` where
+        they are unavailable."""
+        with self._packets_lock:
+            if not self._packets:
+                self._packets.append(packet_scene(self.triangles))
+            return self._packets[0]
 
 
-def _chunks(n: int, threads: int) -> list[slice]:
+def _chunks(n: int, threads: int, step: int = 1) -> list[slice]:
     """Slices of a batch of ``n`` rays for ``threads`` threads: several a thread (up to 8, each of at least
     ~16 k rays), taken in turn, so a thread whose rays were cheap (a probe inside a wall) takes more,
     instead of waiting for the other's half (5 % of the 512² bake's casts, 2 threads); one slice for a
-    tiny batch (no point in threads)."""
+    tiny batch (no point in threads). Slices start at multiples of ``step`` (a packet's rays stay
+    together, whatever the thread count)."""
     k = 1 if threads == 1 else max(1, min(8 * threads, n // 16384 + 1))
-    edges = np.linspace(0, n, k + 1).astype(int)
+    edges = (np.linspace(0, n, k + 1) // step * step).astype(int)
+    edges[-1] = n
     return [slice(a, b) for a, b in itertools.pairwise(edges)]
 
 
@@ -92,7 +110,7 @@ class EmbreeCaster(AbstractRayCaster):
         self.handle = _EmbreeHandle(tri)
         self.threads = int(threads or os.cpu_count() or 1)
 
-    def _run(self, origins, directions, t_max, query):
+    def _run(self, origins, directions, t_max, query, coherent=False):
         o = np.ascontiguousarray(np.asarray(origins), np.float32)
         d = np.ascontiguousarray(np.asarray(directions), np.float32)
         if o.ndim != 2 or o.shape[1] != 3 or d.shape != o.shape:
@@ -103,12 +121,17 @@ class EmbreeCaster(AbstractRayCaster):
         tfar = np.nextafter(tm, np.float32(-np.inf)).astype(np.float32)
         tfar = np.where(tm > 0, tfar, np.float32(0))
 
+        packets = self.handle.packets() if coherent and query == "INTERSECT" else None
+
         def one(sl):
+            if packets is not None:
+                return packets.intersect(o[sl], d[sl], tfar[sl])
             if query == "OCCLUDED":
                 return self.handle.scene.run(o[sl], d[sl], dists=tfar[sl].copy(), query="OCCLUDED")
             return self.handle.scene.run(o[sl], d[sl], dists=tfar[sl].copy(), output=1)
 
-        parts = _chunks(n, self.threads)
+        parts = [sl for sl in _chunks(n, self.threads, _PACKET if packets else 1) if sl.stop > sl.start]
+        parts = parts or [slice(0, n)]
         if len(parts) == 1:
             res = [one(parts[0])]
         else:
@@ -135,14 +158,15 @@ class EmbreeCaster(AbstractRayCaster):
         """Nearest intersection with ``0 < t < t_max`` per ray (``tri = -1`` and ``t = inf`` on a miss)."""
         return self.closest_hit_map(_the_hit, origins, directions, t_max=t_max)
 
-    def closest_hit_map(self, fn, origins, directions, *args, t_max=jnp.inf):
+    def closest_hit_map(self, fn, origins, directions, *args, t_max=jnp.inf, coherent=False):
         """``fn(hit, *args)`` (:meth:`AbstractRayCaster.closest_hit_map`): Embree's raw answers go into one
-        compiled program that completes the hit and applies ``fn``."""
+        compiled program that completes the hit and applies ``fn``. ``coherent``: cast in Embree's 16-ray
+        packets (``_embree_packets``) where they are available."""
         # the rays' dtype without a device copy of them (the bake hands over 2 M host rays a batch)
         dtype = jax.dtypes.canonicalize_dtype(
             origins.dtype if hasattr(origins, "dtype") else np.asarray(origins).dtype
         )
-        r = self._run(origins, directions, t_max, "INTERSECT")
+        r = self._run(origins, directions, t_max, "INTERSECT", coherent)
         raw = (r["tfar"], r["primID"], r["u"], r["v"])
         return _complete_map(fn, self.scene, self.tri_normal, *raw, dtype, *args)
 

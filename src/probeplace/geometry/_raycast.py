@@ -46,12 +46,14 @@ class AbstractRayCaster(eqx.Module):
     ) -> Hit:
         """Nearest intersection with ``0 < t < t_max`` per ray (``tri = -1`` and ``t = inf`` on a miss)."""
 
-    def closest_hit_map(self, fn, origins, directions, *args, t_max=jnp.inf):
+    def closest_hit_map(self, fn, origins, directions, *args, t_max=jnp.inf, coherent=False):
         """``fn(hit, *args)`` of :meth:`closest_hit`'s ``hit``, in one compiled program with the hit's
         completion where the caster can (a host caster: Embree; a jittable one runs it under the caller's
         jit as it is). ``fn`` is a module-level function (compiled programs are kept per function): the
         bake reduces 2 M hits a batch to what its maps store, and the hit's unused fields (material,
-        barycentrics) are never written (issue 33)."""
+        barycentrics) are never written (issue 33). ``coherent``: the caller's hint that each 16
+        consecutive rays are coherent (one origin, a 4×4 tile of directions); a caster that traces packets
+        uses it (Embree), the others ignore it."""
         return _closest_hit_map(self, fn, origins, directions, t_max, *args)
 
     @abc.abstractmethod

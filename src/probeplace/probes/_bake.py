@@ -415,6 +415,32 @@ def _texel_surfels(hit, d, far):
     return jnp.where(is_hit, hit.t, far), pack_normal(jnp.where(is_hit[:, None], n_or, 0.0)), back
 
 
+# The texel-centre rays go to the caster in 4×4 tiles of one probe's map, 16 consecutive rays a tile: one
+# coherent Embree packet (geometry/_embree_packets.py: 13.0 against 6.1 M rays/s on Sponza, 2 threads;
+# 8.2 M rays/s in 16×1 rows). A map whose side is no multiple of 4 goes row by row.
+_TILE = 4
+
+
+def _tile(g: int) -> int:
+    return _TILE if g % _TILE == 0 else 1
+
+
+def _to_tiles(maps: np.ndarray) -> np.ndarray:
+    """(G, G, *c) texel maps → (G², *c) in tile order: the 4×4 tiles row by row, each tile's texels
+    row by row."""
+    g, t = maps.shape[0], _tile(maps.shape[0])
+    c = maps.shape[2:]
+    x = maps.reshape(g // t, t, g // t, t, *c).swapaxes(1, 2)
+    return x.reshape(g * g, *c)
+
+
+def _from_tiles(flat: np.ndarray, b: int, g: int) -> np.ndarray:
+    """:func:`_to_tiles`' inverse for ``b`` probes: (b·G², *c) in tile order → (b, G, G, *c)."""
+    t = _tile(g)
+    c = flat.shape[1:]
+    return flat.reshape(b, g // t, g // t, t, t, *c).swapaxes(2, 3).reshape(b, g, g, *c)
+
+
 def _bake_batch(
     pos: np.ndarray,
     caster,
@@ -427,14 +453,17 @@ def _bake_batch(
     key: jax.Array,
 ):
     """One batch of probes (``pos``, (b, 3)): the geometry maps' texel-centre surfels as flat (b·G²)
-    arrays (distance, packed normal, back face), then the radiance maps. ``centre_dirs``: the G² texel
-    directions repeated for a full batch, built once a bake (a shorter last batch reads its head); the
-    rays stay host (NumPy) arrays, which Embree reads as they are and a JAX caster converts once."""
+    arrays in tile order (distance, packed normal, back face), then the radiance maps. ``centre_dirs``:
+    the G² texel directions in tile order (:func:`_to_tiles`) repeated for a full batch, built once a bake
+    (a shorter last batch reads its head); the rays stay host (NumPy) arrays, which Embree reads as they
+    are and a JAX caster converts once."""
     b, g2 = pos.shape[0], geo_res * geo_res
     dirs = centre_dirs[: b * g2]
     origins = np.repeat(pos, g2, axis=0)
     # normals packed batch by batch (a 1024-probe set at 512² would be 3 GiB of float32 normals)
-    geometry = caster.closest_hit_map(_texel_surfels, origins, dirs, dirs, jnp.float32(far))
+    geometry = caster.closest_hit_map(
+        _texel_surfels, origins, dirs, dirs, jnp.float32(far), coherent=_tile(geo_res) == _TILE
+    )
     k_dir, k_rad = jax.random.split(key)
     radiance = texel_radiance(jnp.asarray(pos), radiance_fn, res, n_sub, k_dir, k_rad)
     return geometry, radiance
@@ -553,7 +582,7 @@ def bake_probes(
     normal_b = np.empty((n, gb, gb, 2), np.int16)
     backface_b = np.empty((n, gb, gb), bool)
     distance, normal, backface = (a[:, 1:-1, 1:-1] for a in (distance_b, normal_b, backface_b))
-    texel_dirs = np.asarray(texel_directions(geo_res), np.float32).reshape(-1, 3)
+    texel_dirs = _to_tiles(np.asarray(texel_directions(geo_res), np.float32))
     centre_dirs = np.tile(texel_dirs, (min(bsz, n), 1))
     parts: list[tuple] = []
     keys = jax.random.split(key, (n + bsz - 1) // bsz)
@@ -564,7 +593,7 @@ def bake_probes(
             pos[rows], caster, radiance_fn, res, geo_res, centre_dirs, config.n_sub, far, keys[i]
         )
         for out, g in zip((distance, normal, backface), geometry, strict=True):
-            out[rows] = np.asarray(g).reshape(out[rows].shape)
+            out[rows] = _from_tiles(np.asarray(g), rows.stop - start, geo_res)
         parts.append(radiance)
         bar.update(rows.stop - start)
     bar.close()
