@@ -156,12 +156,14 @@ class PacketScene:
             return {"tfar": np.zeros(0, np.float32), "primID": np.zeros(0, np.int32),
                     "u": np.zeros(0, np.float32), "v": np.zeros(0, np.float32)}  # fmt: skip
         p = -(-n // W)
-        pad = np.minimum(np.arange(p * W), n - 1)  # the last packet filled with copies of the last ray
+        if n % W:  # the last packet filled with copies of the last ray
+            pad = np.minimum(np.arange(p * W), n - 1)
+            origins, directions, tfar = origins[pad], directions[pad], tfar[pad]
         buf = _aligned((p, _ROWS, W), np.float32)
         for k in range(3):
-            buf[:, _ORG + k] = origins[pad, k].reshape(p, W)
-            buf[:, _DIR + k] = directions[pad, k].reshape(p, W)
-        buf[:, _TFAR] = tfar[pad].reshape(p, W)
+            buf[:, _ORG + k] = origins[:, k].reshape(p, W)
+            buf[:, _DIR + k] = directions[:, k].reshape(p, W)
+        buf[:, _TFAR] = tfar.reshape(p, W)
         words = buf.view(np.uint32)
         words[:, _MASK] = 0xFFFFFFFF
         words[:, _GEOM] = _INVALID  # Embree 4 requires it set before the query
