@@ -1,8 +1,8 @@
 """Convergence of the probe error with probe density and map resolution, and what the error is made of.
 
-    .venv/bin/python benchmarks/convergence.py [--quick] [--scenes cornell sponza] [--bake-spp N]
-        [--n-sub N] [--res 16 32 64] [--grids 4x4x4 8x4x4] [--seeds 3] [--fresh] [--geometry-res N]
-        [--backend jax|mitsuba] [--no-auto] [--no-costs]
+    .venv/bin/python benchmarks/convergence.py [--quick] [--scenes cornell sponza]
+        [--bake-spp N | scene:N ...] [--n-sub N] [--res 16 32 64] [--grids 4x4x4 8x4x4] [--seeds 3]
+        [--fresh] [--geometry-res N] [--backend jax|mitsuba] [--no-auto] [--no-costs]
 
 For each scene (Cornell box "front", Crytek Sponza "CameraMain"), uniform grids of increasing density
 (cell centres of the scene box) × radiance-map resolutions, baked with the path tracer
@@ -181,6 +181,7 @@ class Bench:
         from probeplace.scene import load_scene
 
         self.key, self.args = key, args
+        self.bake_spp = (scene_values(args.bake_spp, key, int) or [4 if args.quick else 8])[0]
         self.scene = load_scene(SCENES[key]["name"])
         self.view = SCENES[key]["view"]
         self.caster = default_caster(self.scene)
@@ -217,7 +218,7 @@ class Bench:
                 "glossy_ref_spp": c.glossy_ref_spp,
                 "max_depth": c.max_depth,
                 "glossy_filter": c.glossy_filter,
-                "bake_spp": self.args.bake_spp,
+                "bake_spp": self.bake_spp,
                 "n_sub": self.args.n_sub,
                 "bake_depth": c.max_depth - 1,
                 "first_hit_lobes": "diffuse",  # what texels store (probes.path_traced_radiance's default)
@@ -269,7 +270,7 @@ class Bench:
         )
         fn = path_traced_radiance(
             self.scene,
-            spp=a.bake_spp,
+            spp=self.bake_spp,
             max_depth=self.config.max_depth - 1,
             caster=self.caster if a.backend == "jax" else None,
             backend=a.backend,
@@ -604,8 +605,8 @@ def targets(result: dict) -> dict:
 
 
 def scene_values(values: list[str] | None, key: str, kind) -> list | None:
-    """``--grids`` / ``--res`` values for scene ``key``: plain values apply to every scene, ``scene:value``
-    to that scene only (e.g. ``--res cornell:64 sponza:16``)."""
+    """``--grids`` / ``--res`` / ``--bake-spp`` values for scene ``key``: plain values apply to every scene,
+    ``scene:value`` to that scene only (e.g. ``--res cornell:64 sponza:16``)."""
     if not values:
         return None
     out = [kind(v.split(":", 1)[1]) for v in values if v.startswith(f"{key}:")]
@@ -624,7 +625,12 @@ def parse_args(argv=None) -> argparse.Namespace:
     ap.add_argument(
         "--res", nargs="+", default=None, help="map resolutions, e.g. 64 (all scenes) or cornell:64"
     )
-    ap.add_argument("--bake-spp", type=int, default=None, help="paths per texel ray (default 8; quick 4)")
+    ap.add_argument(
+        "--bake-spp",
+        nargs="+",
+        default=None,
+        help="paths per texel ray, e.g. 8 (all scenes) or cornell:32 (default 8; quick 4)",
+    )
     ap.add_argument("--n-sub", type=int, default=1, help="n_sub² jittered rays per texel")
     ap.add_argument("--max-depth", type=int, default=4, help="evaluation path depth (bake: − 1)")
     ap.add_argument("--eval-spp", type=int, default=None, help="reference paths/pixel (default 32; quick 16)")
@@ -701,7 +707,6 @@ def parse_args(argv=None) -> argparse.Namespace:
     )
     args = ap.parse_args(argv)
     q = args.quick
-    args.bake_spp = args.bake_spp or (4 if q else 8)
     args.eval_spp = args.eval_spp or (16 if q else 32)
     args.grid128_res = args.grid128_res or (16 if q else 64)
     return args
