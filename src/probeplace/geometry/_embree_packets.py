@@ -87,23 +87,28 @@ def _load():
     if not libs:
         log.info("Embree packets unavailable: embreex's libembree4 not found; casting one ray at a time")
         return None
-    lib = ctypes.CDLL(libs[0])
     vp, u32, sz = ctypes.c_void_p, ctypes.c_uint, ctypes.c_size_t
-    for name, res, args in (
-        ("rtcNewDevice", vp, [ctypes.c_char_p]),
-        ("rtcGetDeviceError", ctypes.c_int, [vp]),
-        ("rtcReleaseDevice", None, [vp]),
-        ("rtcNewScene", vp, [vp]),
-        ("rtcCommitScene", None, [vp]),
-        ("rtcReleaseScene", None, [vp]),
-        ("rtcNewGeometry", vp, [vp, ctypes.c_int]),
-        ("rtcSetSharedGeometryBuffer", None, [vp, ctypes.c_int, u32, ctypes.c_int, vp, sz, sz, sz]),
-        ("rtcCommitGeometry", None, [vp]),
-        ("rtcAttachGeometry", u32, [vp, vp]),
-        ("rtcReleaseGeometry", None, [vp]),
-    ):
-        f = getattr(lib, name)
-        f.restype, f.argtypes = res, args
+    try:
+        lib = ctypes.CDLL(libs[0])  # the one embreex has loaded: the same handle
+        for name, res, args in (
+            ("rtcNewDevice", vp, [ctypes.c_char_p]),
+            ("rtcGetDeviceError", ctypes.c_int, [vp]),
+            ("rtcReleaseDevice", None, [vp]),
+            ("rtcNewScene", vp, [vp]),
+            ("rtcCommitScene", None, [vp]),
+            ("rtcReleaseScene", None, [vp]),
+            ("rtcNewGeometry", vp, [vp, ctypes.c_int]),
+            ("rtcSetSharedGeometryBuffer", None, [vp, ctypes.c_int, u32, ctypes.c_int, vp, sz, sz, sz]),
+            ("rtcCommitGeometry", None, [vp]),
+            ("rtcAttachGeometry", u32, [vp, vp]),
+            ("rtcReleaseGeometry", None, [vp]),
+            ("rtcIntersect16", None, [vp, vp, vp, vp]),
+        ):
+            f = getattr(lib, name)
+            f.restype, f.argtypes = res, args
+    except (OSError, AttributeError) as e:  # a library that does not load, or lacks a function
+        log.warning("Embree packets unavailable (%s): casting one ray at a time", e)
+        return None
     return lib, _packet_loop
 
 
@@ -194,6 +199,6 @@ def packet_scene(triangles: np.ndarray) -> PacketScene | None:
         return None
     try:
         return PacketScene(*found, triangles)
-    except (RuntimeError, AttributeError, OSError) as e:
+    except RuntimeError as e:
         log.warning("Embree packets unavailable (%s): casting one ray at a time", e)
         return None
