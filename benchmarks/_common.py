@@ -64,3 +64,20 @@ def write_result(name: str, result: dict) -> Path:
     path = write_text_atomic(RESULTS / f"{name}.json", json.dumps(result, indent=2, sort_keys=True))
     print(json.dumps(result, sort_keys=True), flush=True)
     return path
+
+
+def atrium_line(scene, n: int):
+    """``n`` points on a line through Sponza's atrium (x from 20 % to 80 % of the scene box, at a third of
+    its height, mid-depth): probes that all see the open atrium, for the bake's set-up costs (issue 33)."""
+    import numpy as np
+
+    lo, hi = (np.asarray(b, np.float64) for b in scene.bounds)
+    t = np.linspace(0.2, 0.8, n)
+    return np.stack(
+        [
+            lo[0] + t * (hi[0] - lo[0]),
+            np.full(n, lo[1] + 0.3 * (hi[1] - lo[1])),
+            np.full(n, 0.5 * (lo[2] + hi[2])),
+        ],
+        axis=1,
+    )

@@ -82,7 +82,7 @@ import numpy as np
 from probeplace._core import scene_box, write_text_atomic
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
-from _common import RESULTS, env_info, setup_scene_path, write_result
+from _common import RESULTS, atrium_line, env_info, setup_scene_path, write_result
 
 CELLS = RESULTS / "convergence_cells"
 SCENES = {
@@ -558,10 +558,7 @@ def instrument_costs(args, result: dict, n: int = 128) -> None:
         result["skipped"]["instrument_costs"] = f"crytek_sponza not loaded: {type(e).__name__}: {e}"
         return
     caster = default_caster(scene)
-    lo, hi = (np.asarray(b, np.float64) for b in scene.bounds)
-    t = np.linspace(0.2, 0.8, n)
-    pos = np.stack([lo[0] + t * (hi[0] - lo[0]), np.full(n, lo[1] + 0.3 * (hi[1] - lo[1])),
-                    np.full(n, 0.5 * (lo[2] + hi[2]))], axis=1)  # fmt: skip
+    pos = atrium_line(scene, n)
     probes = ProbeSet(pos_world=jnp.asarray(pos, jnp.float32), active=jnp.ones(n, bool))
     const = lambda o, d, k: (np.full((o.shape[0], 3), 0.5, np.float32), np.zeros((o.shape[0], 3), np.float32))
     cfg = BakeConfig(

@@ -18,6 +18,9 @@ tests' criterion (``compare_hits`` in tests/geometry/raycast_reference.py), the 
 Beside each, ``*_hit_same_id_share`` is the raw share of identical triangle ids: at a tie it records which
 triangle each caster met first, which follows traversal order, and Embree's traversal depends on the
 instruction set it picks at run time (SSE, AVX2, AVX-512), so it is reported but has no target.
+The geometry bake's rays on Sponza (:func:`texel_rays`, issue 33): 16 probes' 512² texel-centre rays in
+4×4 tiles, embreex one ray at a time against Embree's coherent 16-ray packets, both on 2 threads
+(``sponza_texel_rays_packets_vs_embree_2t``), and the packets' agreement with the single rays.
 Last stdout line: one JSON object, also written to benchmarks/results/raycast.json.
 """
 
@@ -37,7 +40,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parent))
 sys.path.insert(1, str(Path(__file__).resolve().parents[1]))  # the repository root, for `tests.geometry`
 from tests.geometry.raycast_reference import compare_hits
 
-from _common import env_info, setup_scene_path, write_result
+from _common import atrium_line, env_info, setup_scene_path, write_result
 
 TARGETS = {
     "sponza_bvh_vs_embree_1t": (">=", 0.10),
@@ -81,6 +84,44 @@ def agreement(tris, o, d, tri, t, ref_tri, ref_t) -> tuple[float, float]:
     """
     c = compare_hits(tris, o, d, tri, t, ref_tri, ref_t)
     return c.agreement, c.same_id_share
+
+
+def texel_rays(result: dict, sponza, repeats: int, n_probes: int = 16, res: int = 512) -> None:
+    """The geometry bake's rays (issue 33): from ``n_probes`` points on the atrium line, the texel-centre
+    directions of a ``res``² map in 4×4 tiles, cast on 2 threads by embreex one ray at a time and in
+    Embree's coherent 16-ray packets (``coherent=True``; absent where the packet loop was not built), and
+    the packets' agreement with the single rays (``compare_hits``: ties verified in float64; a ray grazing
+    an edge may go either way in two kernels, see tests/geometry/test_embree_packets.py)."""
+    from probeplace._core import texel_directions
+    from probeplace.geometry import EmbreeCaster, embree_packets_available
+
+    if not embree_packets_available():
+        result["sponza_texel_rays"] = "Embree packets unavailable (the _packet_loop extension was not built)"
+        return
+    dirs = np.asarray(texel_directions(res), np.float32).reshape(res // 4, 4, res // 4, 4, 3).swapaxes(1, 2)
+    d = np.tile(dirs.reshape(-1, 3), (n_probes, 1))
+    o = np.repeat(atrium_line(sponza, n_probes).astype(np.float32), res * res, axis=0)
+    em = EmbreeCaster(sponza, threads=2)
+    em._run(o[:4096], d[:4096], np.inf, "INTERSECT", coherent=True)  # build the packets' scene
+    med = interleaved(
+        {
+            "single": lambda: em._run(o, d, np.inf, "INTERSECT"),
+            "packets": lambda: em._run(o, d, np.inf, "INTERSECT", coherent=True),
+        },
+        repeats,
+    )
+    one, pk = em._run(o, d, np.inf, "INTERSECT"), em._run(o, d, np.inf, "INTERSECT", coherent=True)
+    tri = np.asarray(sponza.vertices, np.float64)[np.asarray(sponza.faces)]
+    n = len(o)
+    result.update(
+        sponza_texel_rays=n,
+        sponza_texel_rays_embree_2t_mrays_s=n / med["single"] / 1e6,
+        sponza_texel_rays_packets_2t_mrays_s=n / med["packets"] / 1e6,
+        sponza_texel_rays_packets_vs_embree_2t=med["single"] / med["packets"],
+    )
+    result["sponza_texel_rays_packets_agreement"], _ = agreement(
+        tri, o, d, pk["primID"], pk["tfar"], one["primID"], one["tfar"]
+    )
 
 
 def main(argv=None) -> dict:
@@ -223,6 +264,7 @@ def main(argv=None) -> dict:
             bvh_t_max_abs_diff=float(np.max(np.abs(t_b[ref_hit] - ref["tfar"][ref_hit]), initial=0.0)),
             sdf_hit_within_voxel=float(within[ref_hit].mean()),
         )
+        texel_rays(result, sponza, args.repeats)
     result["targets"] = {
         k: {
             "target": f"{op} {val}",
