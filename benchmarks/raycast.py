@@ -94,12 +94,12 @@ def texel_rays(result: dict, sponza, repeats: int, n_probes: int = 16, res: int 
     an edge may go either way in two kernels, see tests/geometry/test_embree_packets.py)."""
     from probeplace._core import texel_directions
     from probeplace.geometry import EmbreeCaster, embree_packets_available
+    from probeplace.probes._bake import _to_tiles
 
     if not embree_packets_available():
         result["sponza_texel_rays"] = "Embree packets unavailable (the _packet_loop extension was not built)"
         return
-    dirs = np.asarray(texel_directions(res), np.float32).reshape(res // 4, 4, res // 4, 4, 3).swapaxes(1, 2)
-    d = np.tile(dirs.reshape(-1, 3), (n_probes, 1))
+    d = np.tile(_to_tiles(np.asarray(texel_directions(res), np.float32)), (n_probes, 1))
     o = np.repeat(atrium_line(sponza, n_probes).astype(np.float32), res * res, axis=0)
     em = EmbreeCaster(sponza, threads=2)
     em._run(o[:4096], d[:4096], np.inf, "INTERSECT", coherent=True)  # build the packets' scene

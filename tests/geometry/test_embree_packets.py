@@ -20,6 +20,7 @@ from probeplace._core import texel_directions
 from probeplace.geometry import EmbreeCaster
 from probeplace.geometry import _embree_packets as packets_mod
 from probeplace.geometry._embree import _chunks, _the_hit
+from probeplace.probes._bake import _to_tiles
 from probeplace.scene import load_scene
 from tests.geometry.raycast_reference import compare_hits, random_rays
 
@@ -54,8 +55,7 @@ def _tile_rays(scene, n_origins: int, res: int, seed: int):
     """The bake's rays: from each of ``n_origins`` random points, the texel-centre directions of a
     ``res``² octahedral map in 4×4 tiles (16 consecutive rays a tile)."""
     o, _ = random_rays(scene, n_origins, seed=seed)
-    dirs = np.asarray(texel_directions(res), np.float32).reshape(res // 4, 4, res // 4, 4, 3).swapaxes(1, 2)
-    dirs = dirs.reshape(-1, 3)
+    dirs = _to_tiles(np.asarray(texel_directions(res), np.float32))
     return np.repeat(np.asarray(o), len(dirs), axis=0), np.tile(dirs, (n_origins, 1))
 
 
@@ -133,7 +133,9 @@ def test_without_packets_the_coherent_query_is_the_single_ray_one(monkeypatch):
 @pytest.mark.parametrize("n", [0, 1, 15, 16, 17, 16384, 100_003, 2_000_000])
 @pytest.mark.parametrize("threads", [1, 2, 3])
 def test_chunks_keep_packets_whole(n, threads):
-    parts = [sl for sl in _chunks(n, threads, 16) if sl.stop > sl.start]
-    covered = np.concatenate([np.arange(sl.start, sl.stop) for sl in parts]) if parts else np.zeros(0, int)
+    """Whole packets, in order, no ray twice; no empty slice (a batch of 0 rays is one empty slice)."""
+    parts = _chunks(n, threads, 16)
+    covered = np.concatenate([np.arange(sl.start, sl.stop) for sl in parts])
     np.testing.assert_array_equal(covered, np.arange(n))
     assert all(sl.start % 16 == 0 for sl in parts)
+    assert all(sl.stop > sl.start for sl in parts) if n else parts == [slice(0, 0)]

@@ -130,8 +130,7 @@ class EmbreeCaster(AbstractRayCaster):
                 return self.handle.scene.run(o[sl], d[sl], dists=tfar[sl].copy(), query="OCCLUDED")
             return self.handle.scene.run(o[sl], d[sl], dists=tfar[sl].copy(), output=1)
 
-        parts = [sl for sl in _chunks(n, self.threads, _PACKET if packets else 1) if sl.stop > sl.start]
-        parts = parts or [slice(0, n)]
+        parts = _chunks(n, self.threads, _PACKET if packets else 1)
         if len(parts) == 1:
             res = [one(parts[0])]
         else:
