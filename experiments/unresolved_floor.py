@@ -18,11 +18,17 @@ light-field trace, McGuire's chain or any other. ``--points`` points a ray (midp
 and the hit are tested: a gap between two points is missed, so the share is a *lower bound* of that
 floor. It is reported among the rays whose origin one of the K nearest usable probes sees
 (``probes.origins_seen``, the target's denominator) beside the tracer's unresolved share there.
+``--margin-texels M`` asks more of a probe than exact visibility: the points before the end must be
+clear of every depth edge by M geometry texels as the probe sees them (:func:`_probes_see`), the floor of
+a trace that reads maps of that resolution (experiments/README.md §2, "The floor at the maps'
+resolution": 2.40 % exact, 2.84 % at half a texel, 3.46 % at one, on the 16×8×8 grid at 512²).
 
     PROBEPLACE_SCENE_PATH=/work/shared/scenes .venv/bin/python experiments/unresolved_floor.py \\
         --grid 16x8x8 --geometry-res 512 --rays 8000
     PROBEPLACE_SCENE_PATH=/work/shared/scenes .venv/bin/python experiments/unresolved_floor.py \\
         --grid 16x8x8 --geometry-res 512 --glossy
+    PROBEPLACE_SCENE_PATH=/work/shared/scenes .venv/bin/python experiments/unresolved_floor.py \\
+        --grid 16x8x8 --geometry-res 512 --glossy --margin-texels 0.5
 
 Last stdout line: one JSON object (the shares).
 """
@@ -42,6 +48,10 @@ import numpy as np
 ROOT = Path(__file__).resolve().parent.parent
 sys.path.insert(0, str(ROOT / "benchmarks"))
 
+from probeplace.probes import TraceConfig  # noqa: E402
+
+_THICKNESS = TraceConfig().thickness  # the tracer's surface shell, a fraction of the distance
+
 
 def _bake(scene, dims, geometry_res, caster):
     from probeplace._core import ProbeSet
@@ -60,20 +70,41 @@ def _bake(scene, dims, geometry_res, caster):
     return bake_probes(scene, probes, caster=caster, radiance_fn=const, key=jax.random.key(0), config=cfg)
 
 
-def _probes_see(caster, p, x) -> tuple[np.ndarray, np.ndarray]:
+def _probes_see(caster, p, x, margin: float = 0.0) -> tuple[np.ndarray, np.ndarray]:
     """Whether each probe at ``p`` (n, m, 3) sees its point of ``x`` (n, 3): the segment probe → x free up
-    to 0.1 % of its length. Returns that (n, m) and the unit directions probe → x (n, m, 3)."""
+    to 0.1 % of its length. Returns that (n, m) and the unit directions probe → x (n, m, 3).
+
+    With ``margin`` (radians) > 0 the probe must also see past x's distance, less the tracer's surface
+    shell (``TraceConfig.thickness``), along each of 8 directions ``margin`` around probe → x: x clears
+    every depth edge by that angle, as a map whose texels span about twice it can tell (a ray's point
+    within half a texel of an edge lies in an ambiguous march cell, docs/tracer.md)."""
     v = x[:, None] - p
     dist = np.linalg.norm(v, axis=2)
     dv = v / dist[..., None]
-    h = caster.closest_hit(
-        jnp.asarray(p.reshape(-1, 3), jnp.float32), jnp.asarray(dv.reshape(-1, 3), jnp.float32)
-    )
-    t = np.where(np.asarray(h.tri) >= 0, np.asarray(h.t), np.inf).reshape(dist.shape)
-    return t >= dist * (1 - 1e-3), dv
+    dirs = [dv] + (_ring(dv, margin) if margin > 0 else [])
+    ok = np.ones(dist.shape, bool)
+    for k, w in enumerate(dirs):
+        h = caster.closest_hit(
+            jnp.asarray(p.reshape(-1, 3), jnp.float32), jnp.asarray(w.reshape(-1, 3), jnp.float32)
+        )
+        t = np.where(np.asarray(h.tri) >= 0, np.asarray(h.t), np.inf).reshape(dist.shape)
+        ok &= t >= dist * (1 - (1e-3 if k == 0 else _THICKNESS))
+    return ok, dv
 
 
-def _visibility(caster, probe_pos, x, n=None) -> np.ndarray:
+def _ring(dv, margin: float, n: int = 8) -> list[np.ndarray]:
+    """``n`` unit directions at angle ``margin`` around each of the unit directions ``dv`` (..., 3)."""
+    axis = np.where((np.abs(dv[..., :1]) < 0.9), [1.0, 0.0, 0.0], [0.0, 1.0, 0.0])
+    a = np.cross(dv, axis)
+    a /= np.linalg.norm(a, axis=-1, keepdims=True)
+    b = np.cross(dv, a)
+    return [
+        np.cos(margin) * dv + np.sin(margin) * (np.cos(phi) * a + np.sin(phi) * b)
+        for phi in 2 * np.pi * np.arange(n) / n
+    ]
+
+
+def _visibility(caster, probe_pos, x, n=None, margin: float = 0.0) -> np.ndarray:
     """(len(x), len(probe_pos)) whether each probe sees each point x (:func:`_probes_see`; from the front
     side of normal n, when given)."""
     out = np.zeros((len(x), len(probe_pos)), bool)
@@ -81,7 +112,7 @@ def _visibility(caster, probe_pos, x, n=None) -> np.ndarray:
         for a in range(0, len(x), 16384):  # ≤ 0.5 M rays a cast
             xa = x[a : a + 16384]
             p = np.broadcast_to(probe_pos[None, k : k + 32], (len(xa), len(probe_pos[k : k + 32]), 3))
-            ok, dv = _probes_see(caster, p, xa)
+            ok, dv = _probes_see(caster, p, xa, margin)
             if n is not None:
                 ok &= np.sum(dv * n[a : a + 16384, None], axis=2) < 0
             out[a : a + 16384, k : k + 32] = ok
@@ -93,13 +124,13 @@ def _within(probe_pos, x, radius) -> np.ndarray:
     return np.linalg.norm(x[:, None] - probe_pos[None], axis=2) <= radius
 
 
-def _seen(caster, probe_pos, x, n=None, radius=None) -> np.ndarray:
+def _seen(caster, probe_pos, x, n=None, radius=None, margin: float = 0.0) -> np.ndarray:
     """(len(x),) whether some probe of ``probe_pos`` sees x (:func:`_visibility`), within ``radius``."""
-    vis = _visibility(caster, probe_pos, x, n)
+    vis = _visibility(caster, probe_pos, x, n, margin)
     return (vis & _within(probe_pos, x, radius) if radius is not None else vis).any(axis=1)
 
 
-def _points_seen(caster, probe_pos, x, k=16) -> np.ndarray:
+def _points_seen(caster, probe_pos, x, k=16, margin: float = 0.0) -> np.ndarray:
     """:func:`_seen` for free-space points, the ``k`` probes nearest each point first (most points are
     seen by one of them), every probe only for the rest."""
     from scipy.spatial import cKDTree
@@ -107,11 +138,11 @@ def _points_seen(caster, probe_pos, x, k=16) -> np.ndarray:
     out = np.zeros(len(x), bool)
     _, idx = cKDTree(probe_pos).query(x, k=min(k, len(probe_pos)))
     for a in range(0, len(x), 32768):
-        out[a : a + 32768] = _probes_see(caster, probe_pos[idx[a : a + 32768]], x[a : a + 32768])[0].any(
-            axis=1
-        )
+        out[a : a + 32768] = _probes_see(caster, probe_pos[idx[a : a + 32768]], x[a : a + 32768], margin)[
+            0
+        ].any(axis=1)
     rest = np.flatnonzero(~out)
-    out[rest] = _seen(caster, probe_pos, x[rest])
+    out[rest] = _seen(caster, probe_pos, x[rest], margin=margin)
     return out
 
 
@@ -139,11 +170,12 @@ def _path_points(o, d, t_exact, lo, hi, n_points) -> np.ndarray:
     return o[:, None] + (t_end[:, None] * frac)[..., None] * d[:, None]
 
 
-def _path_floor(caster, usable, o, d, t_exact, lo, hi, n_points) -> np.ndarray:
+def _path_floor(caster, usable, o, d, t_exact, lo, hi, n_points, margin: float = 0.0) -> np.ndarray:
     """(len(o),) whether a point of the ray before its end is seen by no usable probe
-    (:func:`_path_points`)."""
+    (:func:`_path_points`; with ``margin``, clear of every depth edge by it: :func:`_probes_see`)."""
     x = _path_points(o, d, t_exact, lo, hi, n_points)
-    return ~_points_seen(caster, usable, x.reshape(-1, 3)).reshape(len(o), n_points).all(axis=1)
+    seen = _points_seen(caster, usable, x.reshape(-1, 3), margin=margin)
+    return ~seen.reshape(len(o), n_points).all(axis=1)
 
 
 def _hit_points(o, d, h, rows):
@@ -154,13 +186,14 @@ def _hit_points(o, d, h, rows):
     return x, np.where((np.sum(n * d[rows], axis=1) > 0)[:, None], -n, n)
 
 
-def _coverage(caster, usable, o, d, h, t_exact, rows, lo, hi, n_points, radius) -> dict:
+def _coverage(caster, usable, o, d, h, t_exact, rows, lo, hi, n_points, radius, margin: float = 0.0) -> dict:
     """For rays every tested point of which some usable probe sees: the shares a trace could certify
     (:func:`_path_points` and the hit) with the probes within ``radius`` of each point (the tracer's
     fallback radius), and as a *chain* (McGuire's: each next probe sees where the last one stopped —
-    here, some probe sees both of every two consecutive points), with any usable probe or within it."""
+    here, some probe sees both of every two consecutive points), with any usable probe or within it.
+    ``margin``: as :func:`_path_floor`'s, for the points before the end."""
     x = _path_points(o[rows], d[rows], t_exact[rows], lo, hi, n_points)
-    vis = _visibility(caster, usable, x.reshape(-1, 3)).reshape(len(rows), n_points, -1)
+    vis = _visibility(caster, usable, x.reshape(-1, 3), margin=margin).reshape(len(rows), n_points, -1)
     near = _within(usable, x.reshape(-1, 3), radius).reshape(vis.shape)
     hit = np.isfinite(t_exact[rows])
     # The end: a hit, seen from the side the ray comes from; a miss ends at the box, nothing more to see.
@@ -205,6 +238,13 @@ def main(argv=None) -> dict:
     )
     ap.add_argument("--seed", type=int, default=0, help="their evaluation seed")
     ap.add_argument("--points", type=int, default=32, help="points tested along each ray (--glossy)")
+    ap.add_argument(
+        "--margin-texels",
+        type=float,
+        default=0.0,
+        help="--glossy: a probe certifies a point before the end only if it sees past it this many geometry "
+        "texels around it (0: the point itself, exact visibility)",
+    )
     args = ap.parse_args(argv)
     scene = load_scene(args.scene)
     caster = EmbreeCaster(scene)
@@ -222,6 +262,7 @@ def main(argv=None) -> dict:
     lo, hi = (np.asarray(v, np.float64) for v in scene_box(scene))
     diag = float(np.linalg.norm(hi - lo))
     radius = tr.config.fallback_radius * float(tr.spacing)
+    margin = args.margin_texels * float(np.sqrt(4 * np.pi)) / args.geometry_res  # a texel's angular width
     out = {
         "scene": args.scene,
         "grid": args.grid,
@@ -236,7 +277,7 @@ def main(argv=None) -> dict:
     if args.glossy:  # the whole ray, among rays whose origin a probe sees (the target's denominator)
         seen = np.asarray(origins_seen(tr, jnp.asarray(o)))
         rows = np.flatnonzero(seen)
-        path = _path_floor(caster, usable, o[rows], d[rows], t_exact[rows], lo, hi, args.points)
+        path = _path_floor(caster, usable, o[rows], d[rows], t_exact[rows], lo, hi, args.points, margin)
         fin = np.isfinite(t_exact[rows])
         hit_unseen = np.zeros(len(rows), bool)
         hit_unseen[fin] = ~_hits_seen(caster, usable, o, d, h, rows[fin])
@@ -245,6 +286,7 @@ def main(argv=None) -> dict:
         out |= {
             "seed": args.seed,
             "points_per_ray": args.points,
+            "margin_texels": args.margin_texels,
             "origin_seen_rays": len(rows),
             "unresolved_seen_share": float(u.mean()),
             "floor_hit_unseen_seen_share": float(hit_unseen.mean()),
@@ -258,7 +300,7 @@ def main(argv=None) -> dict:
             )[0],
         }
         above = rows[u & ~floor]  # unresolved, though some probe sees every point tested
-        cov = _coverage(caster, usable, o, d, h, t_exact, above, lo, hi, args.points, radius)
+        cov = _coverage(caster, usable, o, d, h, t_exact, above, lo, hi, args.points, radius, margin)
         out |= {f"unresolved_above_floor_{k}": v for k, v in cov.items()}
     else:  # the exact hit of the unresolved rays
         unres = np.flatnonzero(unresolved & np.isfinite(t_exact))
