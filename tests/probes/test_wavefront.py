@@ -125,9 +125,9 @@ def test_wavefront_matches_per_ray_cornell(cornell_case):
 
 
 def test_wavefront_matches_per_ray_at_the_papers_resolution(cornell):
-    """The two engines agree at Wang's 512² geometry maps (issue 33: the compact float16 bounds, the
-    closed-form cell cones and the distance-only surfels are read by both through the same accessors, so
-    only how the engines schedule the steps differs): a 2×2×2 grid on the Cornell box, 600 rays."""
+    """The two engines agree at Wang's 512² geometry maps (issue 33: the compact maps — one-byte bound
+    codes, bfloat16 normals, distance-only surfels — are read by both through the same accessors, so only
+    how the engines schedule the steps differs): a 2×2×2 grid on the Cornell box, 600 rays."""
     caster = BruteForceCaster(cornell)
     lf = _bake_grid(cornell, (2, 2, 2), caster, geometry_res=512)
     rays = _free_rays(cornell, caster, 600, seed=1)
