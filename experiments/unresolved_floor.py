@@ -76,8 +76,9 @@ def _probes_see(caster, p, x, margin: float = 0.0) -> tuple[np.ndarray, np.ndarr
 
     With ``margin`` (radians) > 0 the probe must also see past x's distance, less the tracer's surface
     shell (``TraceConfig.thickness``), along each of 8 directions ``margin`` around probe → x: x clears
-    every depth edge by that angle, as a map whose texels span about twice it can tell (a ray's point
-    within half a texel of an edge lies in an ambiguous march cell, docs/tracer.md)."""
+    every depth edge by that angle. A map tells no more than that when its texels are about twice the
+    margin wide: a ray's point within half a texel of an edge lies in an ambiguous march cell
+    (docs/tracer.md)."""
     v = x[:, None] - p
     dist = np.linalg.norm(v, axis=2)
     dv = v / dist[..., None]
@@ -138,9 +139,8 @@ def _points_seen(caster, probe_pos, x, k=16, margin: float = 0.0) -> np.ndarray:
     out = np.zeros(len(x), bool)
     _, idx = cKDTree(probe_pos).query(x, k=min(k, len(probe_pos)))
     for a in range(0, len(x), 32768):
-        out[a : a + 32768] = _probes_see(caster, probe_pos[idx[a : a + 32768]], x[a : a + 32768], margin)[
-            0
-        ].any(axis=1)
+        seen, _ = _probes_see(caster, probe_pos[idx[a : a + 32768]], x[a : a + 32768], margin)
+        out[a : a + 32768] = seen.any(axis=1)
     rest = np.flatnonzero(~out)
     out[rest] = _seen(caster, probe_pos, x[rest], margin=margin)
     return out
@@ -246,6 +246,10 @@ def main(argv=None) -> dict:
         "texels around it (0: the point itself, exact visibility)",
     )
     args = ap.parse_args(argv)
+    if args.margin_texels < 0:
+        ap.error(f"--margin-texels {args.margin_texels}: a margin is 0 or more texels")
+    if args.margin_texels > 0 and not args.glossy:
+        ap.error("--margin-texels applies to the whole rays of --glossy: add --glossy, or drop the margin")
     scene = load_scene(args.scene)
     caster = EmbreeCaster(scene)
     o, d = (
