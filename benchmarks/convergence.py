@@ -79,7 +79,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from probeplace._core import scene_box, write_text_atomic
+from probeplace._core import ResourceError, scene_box, write_text_atomic
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 from _common import RESULTS, atrium_line, env_info, setup_scene_path, write_result
@@ -125,7 +125,8 @@ AUTO_PLACEMENT = {"method": "skeleton", "budget": "auto"}
 CELL_FIGURES = (
     "mse_over_floor", "agreement", "unresolved", "unresolved_seen", "origin_seen", "trace_excess",
     "glossy_over_black", "diffuse_over_black", "bake_s", "make_tracer_s", "usable_probes",
-    "shading_s_per_frame", "n_probes", "n_probes_usable",
+    "shading_s_per_frame", "n_probes", "n_probes_usable", "mse_glossy_perfect_trace",
+    "view_dependence_over_black",
 )  # fmt: skip
 #: The automatic skeleton set's figures reported beside the grid's (``sponza_auto_g{G}_…``).
 AUTO_FIGURES = (
@@ -465,7 +466,7 @@ def report_cell(result: dict, name: str, res: int, geo: int, c: dict) -> dict:
     resolution (issue 33's keys: the tracer's resolution is the geometry maps'), ``{name}_g{geo}_…`` (the
     last cell run at that geometry: the finest radiance). A figure the cell lacks (cached before it was
     recorded) is null, with the reason in ``skipped``. Returns ``c``."""
-    for f in (*CELL_FIGURES, "mse_glossy_perfect_trace", "view_dependence_over_black"):
+    for f in CELL_FIGURES:
         for k in (f"{name}_r{res}_{f}", f"{name}_g{geo}_{f}"):
             result[k] = c.get(f)
             if f not in c:
@@ -487,9 +488,16 @@ def run_scene(key: str, args, plan: dict, result: dict) -> None:
     cells = {}
     for grid in plan["grids"]:
         for res in plan["res"]:
-            cells[f"{grid}_r{res}"] = report_cell(
-                result, f"{key}_{grid}", res, b.geometry_res(res), b.cell(grid, res, 0)
-            )
+            try:
+                c = b.cell(grid, res, 0)
+            except ResourceError as e:  # e.g. 1,024 probes at 1024² on a small machine: the other cells run
+                why = f"not run: {e}"
+                log(f"{key} {grid} r{res}: {why}")
+                for f in CELL_FIGURES:
+                    for k in (f"{key}_{grid}_r{res}_{f}", f"{key}_{grid}_g{b.geometry_res(res)}_{f}"):
+                        result[k], result["skipped"][k] = None, why
+                continue
+            cells[f"{grid}_r{res}"] = report_cell(result, f"{key}_{grid}", res, b.geometry_res(res), c)
     if key == "sponza" and args.no_auto:
         for f in AUTO_FIGURES:
             k = f"sponza_{AUTO}_g{b.geometry_res(max(plan['res']))}_{f}"

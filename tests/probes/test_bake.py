@@ -181,6 +181,32 @@ def test_moments_of_constant_distance_match_numpy():
     np.testing.assert_allclose(m[..., 1], 9.0, rtol=1e-12)
 
 
+def test_moments_in_passes_are_the_whole_sets(monkeypatch):
+    """The bake's moments pass by pass (``_chunked_moments``: 3 probes a pass here, the last pass 1) equal
+    one pass over all 7: rows are independent. Tolerance: a different matrix shape may sum a row's
+    16² products in another order, float32 eps × 256 terms of one sign."""
+    from probeplace.probes import _bake
+
+    rng = np.random.default_rng(0)
+    dist = rng.uniform(0.5, 4.0, (7, 16, 16)).astype(np.float32)
+    monkeypatch.setattr(_bake, "_MOMENTS_PASS_BYTES", 3 * 16 * 16 * 4)
+    got = np.asarray(_bake._chunked_moments(dist, BakeConfig()))
+    whole = np.asarray(
+        distance_moments(jnp.asarray(dist), BakeConfig().moments_res, BakeConfig().moment_power)
+    )
+    assert got.shape == whole.shape == (7, 16, 16, 2)
+    np.testing.assert_allclose(got, whole, rtol=256 * 2**-23)
+
+
+def test_host_maps_are_aligned_for_jax_to_share():
+    from probeplace.probes import _bake
+
+    a = _bake._host_maps((3, 5, 5, 2), np.int16)
+    assert a.shape == (3, 5, 5, 2) and a.dtype == np.int16 and a.ctypes.data % 64 == 0
+    a[:] = 7
+    assert (np.asarray(jax.device_put(a)) == 7).all()
+
+
 def test_save_load_round_trip_is_lossless(room, tmp_path, getkey):
     probes = ProbeSet(pos_world=jnp.asarray([[2.0, 1.5, 2.5]], jnp.float32), active=jnp.ones(1, bool))
     cfg = BakeConfig(radiance_res=8, irradiance_res=4, moments_res=4, n_sub=2, progress=False)

@@ -562,11 +562,13 @@ def bake_probes(
     bsz = config.probes_per_batch
     # Refuse up front (issue 9): one batch's rays (~200 bytes per path, see BakeConfig) plus the output
     # maps (radiance, emission 3 floats each, kept as NumPy and as JAX copies). Geometry maps per texel:
-    # the float32 distance, the packed normal (2 × int16) and the back-face byte — 9 bytes, twice.
+    # the float32 distance, the packed normal (2 × int16) and the back-face byte — 9 bytes, once (the
+    # JAX arrays share the host buffers, :func:`_host_maps`), and one chunk of the moments' pass.
     need = (
         batch_ray_bytes(min(bsz, n), res, config.n_sub)
         + n * (res + 2) ** 2 * 6 * 4 * 2
-        + n * (geo_res + 2) ** 2 * (4 + 4 + 1) * 2
+        + n * (geo_res + 2) ** 2 * (4 + 4 + 1)
+        + _moments_pass_bytes(n, geo_res, config.moments_res)
     )
     check_memory(
         need,
@@ -578,9 +580,9 @@ def bake_probes(
     # (issue 33: concatenating and bordering 9 bytes a texel took ~2 s of a 128-probe bake at 512²), and
     # the texel-centre directions, built once for a full batch.
     gb = geo_res + 2
-    distance_b = np.empty((n, gb, gb), np.float32)
-    normal_b = np.empty((n, gb, gb, 2), np.int16)
-    backface_b = np.empty((n, gb, gb), bool)
+    distance_b = _host_maps((n, gb, gb), np.float32)
+    normal_b = _host_maps((n, gb, gb, 2), np.int16)
+    backface_b = _host_maps((n, gb, gb), bool)
     distance, normal, backface = (a[:, 1:-1, 1:-1] for a in (distance_b, normal_b, backface_b))
     texel_dirs = _to_tiles(np.asarray(texel_directions(geo_res), np.float32))
     centre_dirs = np.tile(texel_dirs, (min(bsz, n), 1))
@@ -608,7 +610,7 @@ def bake_probes(
     # Irradiance integrates what arrives at the probe from every lobe: a receiver near the probe gets the
     # surfaces' specular reflection too (a furnace's walls: −3 % of its diffuse indirect without it).
     irr = irradiance_map(f32(every_lobe), config.irradiance_res)
-    mom = distance_moments(f32(distance), config.moments_res, config.moment_power)
+    mom = _chunked_moments(distance, config)
     for a in (distance_b, normal_b, backface_b):
         fill_border(a)
     return LightFieldProbes(
@@ -617,14 +619,49 @@ def bake_probes(
         inside=jnp.asarray(inside),
         radiance=add_border(f32(radiance)),
         emission=add_border(f32(emission)),
-        normal16=jnp.asarray(normal_b),
-        distance=jnp.asarray(distance_b),
+        normal16=jax.device_put(normal_b),
+        distance=jax.device_put(distance_b),
         irradiance=add_border(irr),
         moments=add_border(mom),
         far=jnp.float32(far),
-        backface=jnp.asarray(backface_b),
+        backface=jax.device_put(backface_b),
         bake=_settings(scene, radiance_fn, res, config.n_sub, key),
     )
+
+
+def _host_maps(shape: tuple[int, ...], dtype) -> np.ndarray:
+    """An uninitialised host array on a 64-byte boundary: ``jax.device_put`` on the CPU then shares its
+    buffer instead of copying it (``jnp.asarray`` always copies, and NumPy's own large arrays sit 16 bytes
+    off a boundary). Issue 33: a 1024-probe set's geometry maps at 1024² are 9.7 GB; twice would not fit
+    a 24 GiB machine. Elsewhere the put is one copy, as before."""
+    n = math.prod(shape) * np.dtype(dtype).itemsize
+    raw = np.empty(n + 64, np.uint8)
+    skip = -raw.ctypes.data % 64
+    return raw[skip : skip + n].view(dtype).reshape(shape)
+
+
+# Distance a moments' pass reads at once: 256 probes at 512² (1 MiB a probe; a 128-probe set in one pass,
+# as before), 64 at 1024² (beside the 9.7 GB maps of 1024 probes, which the lobe matrix's 1 GiB joins).
+_MOMENTS_PASS_BYTES = 1 << 28
+
+
+def _moments_pass_probes(geo_res: int) -> int:
+    return max(1, _MOMENTS_PASS_BYTES // (geo_res * geo_res * 4))
+
+
+def _moments_pass_bytes(n: int, geo_res: int, moments_res: int) -> int:
+    """Peak bytes of one pass of :func:`_chunked_moments`: the pass's distances and their squares, and the
+    lobe matrix with its cosine table (float32)."""
+    return min(n, _moments_pass_probes(geo_res)) * geo_res**2 * 4 * 2 + moments_res**2 * geo_res**2 * 4 * 2
+
+
+def _chunked_moments(distance: np.ndarray, config: BakeConfig) -> Array:
+    """:func:`distance_moments` of the host maps ``distance`` (n, G, G), a pass of at most
+    :data:`_MOMENTS_PASS_BYTES` at a time: the rows are independent, so the passes' results are the
+    whole set's. Every pass but a shorter last one has one shape (one compiled program)."""
+    step = _moments_pass_probes(distance.shape[1])
+    moments = lambda d: distance_moments(jnp.asarray(d), config.moments_res, config.moment_power)
+    return jnp.concatenate([moments(distance[i : i + step]) for i in range(0, len(distance), step)])
 
 
 def _inside(scene, pos, res: int, distance, far: float, backface, caster, config: BakeConfig) -> np.ndarray:
