@@ -461,18 +461,23 @@ def summarise(m: dict) -> dict:
     }
 
 
-def report_cell(result: dict, name: str, res: int, geo: int, c: dict) -> dict:
+def report_cell(
+    result: dict,
+    name: str,
+    res: int,
+    geo: int,
+    c: dict,
+    missing: str = "the cell was cached before this figure was recorded: rerun with --fresh",
+) -> dict:
     """Put a cell's figures at the top level of ``result`` as ``{name}_r{res}_…`` and, by geometry
     resolution (issue 33's keys: the tracer's resolution is the geometry maps'), ``{name}_g{geo}_…`` (the
-    last cell run at that geometry: the finest radiance). A figure the cell lacks (cached before it was
-    recorded) is null, with the reason in ``skipped``. Returns ``c``."""
+    last cell run at that geometry: the finest radiance). A figure the cell lacks is null, with the reason
+    ``missing`` in ``skipped`` (a cell not run at all: ``c`` empty). Returns ``c``."""
     for f in CELL_FIGURES:
         for k in (f"{name}_r{res}_{f}", f"{name}_g{geo}_{f}"):
             result[k] = c.get(f)
             if f not in c:
-                result["skipped"][k] = (
-                    "the cell was cached before this figure was recorded: rerun with --fresh"
-                )
+                result["skipped"][k] = missing
             else:
                 result["skipped"].pop(k, None)
     return c
@@ -488,16 +493,14 @@ def run_scene(key: str, args, plan: dict, result: dict) -> None:
     cells = {}
     for grid in plan["grids"]:
         for res in plan["res"]:
+            geo = b.geometry_res(res)
             try:
                 c = b.cell(grid, res, 0)
             except ResourceError as e:  # e.g. 1,024 probes at 1024² on a small machine: the other cells run
-                why = f"not run: {e}"
-                log(f"{key} {grid} r{res}: {why}")
-                for f in CELL_FIGURES:
-                    for k in (f"{key}_{grid}_r{res}_{f}", f"{key}_{grid}_g{b.geometry_res(res)}_{f}"):
-                        result[k], result["skipped"][k] = None, why
+                log(f"{key} {grid} r{res}: not run: {e}")
+                report_cell(result, f"{key}_{grid}", res, geo, {}, missing=f"not run: {e}")
                 continue
-            cells[f"{grid}_r{res}"] = report_cell(result, f"{key}_{grid}", res, b.geometry_res(res), c)
+            cells[f"{grid}_r{res}"] = report_cell(result, f"{key}_{grid}", res, geo, c)
     if key == "sponza" and args.no_auto:
         for f in AUTO_FIGURES:
             k = f"sponza_{AUTO}_g{b.geometry_res(max(plan['res']))}_{f}"
