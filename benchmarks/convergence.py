@@ -195,7 +195,11 @@ class Bench:
             max_depth=args.max_depth,
             timing_repeats=args.timing_repeats,
             backend=args.backend,
-            trace=TraceConfig(subdivide=args.subdivide, engine=args.trace_engine),
+            trace=TraceConfig(
+                subdivide=args.subdivide,
+                engine=args.trace_engine,
+                **({"fallback_radius": args.fallback_radius} if args.fallback_radius is not None else {}),
+            ),
         )
         self.shared: dict = {}
         self.warm: set = set()
@@ -231,6 +235,11 @@ class Bench:
             )
             | ({"backend": self.args.backend} if self.args.backend != "jax" else {})
             | ({"subdivide": self.args.subdivide} if self.args.subdivide != 2 else {})
+            | (
+                {"fallback_radius": self.args.fallback_radius}
+                if self.args.fallback_radius is not None
+                else {}
+            )
             | {"trace_engine": self.args.trace_engine}
         )
 
@@ -705,6 +714,13 @@ def parse_args(argv=None) -> argparse.Namespace:
         help="light-field tracer march cells per geometry texel and axis (probes.TraceConfig.subdivide)",
     )
     ap.add_argument(
+        "--fallback-radius",
+        type=float,
+        default=None,
+        help="probe spacings within which the tracer's fallback takes a probe (probes.TraceConfig."
+        "fallback_radius; default the tracer's own, 2.5)",
+    )
+    ap.add_argument(
         "--geometry-factor",
         type=int,
         default=2,
@@ -714,6 +730,8 @@ def parse_args(argv=None) -> argparse.Namespace:
         "0.34; 1 = McGuire's single resolution)",
     )
     args = ap.parse_args(argv)
+    if args.fallback_radius is not None and not args.fallback_radius > 0:
+        ap.error(f"--fallback-radius must be a positive number of probe spacings, got {args.fallback_radius}")
     q = args.quick
     args.eval_spp = args.eval_spp or (16 if q else 32)
     args.grid128_res = args.grid128_res or (16 if q else 64)
