@@ -641,11 +641,12 @@ def _host_maps(shape: tuple[int, ...], dtype) -> np.ndarray:
 
 
 # Distance a moments' pass reads at once: 256 probes at 512² (1 MiB a probe; a 128-probe set in one pass,
-# as before), 64 at 1024² (beside the 9.7 GB maps of 1024 probes, which the lobe matrix's 1 GiB joins).
+# as before), 64 at 1024², beside the 9.7 GB maps of 1,024 probes and the lobe matrix's 1 GiB.
 _MOMENTS_PASS_BYTES = 1 << 28
 
 
 def _moments_pass_probes(geo_res: int) -> int:
+    """Probes a moments' pass takes at geometry resolution ``geo_res``."""
     return max(1, _MOMENTS_PASS_BYTES // (geo_res * geo_res * 4))
 
 
