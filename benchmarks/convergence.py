@@ -186,6 +186,10 @@ class Bench:
         self.scene = load_scene(SCENES[key]["name"])
         self.view = SCENES[key]["view"]
         self.caster = default_caster(self.scene)
+        # tracer settings from the command line: given to the tracer and recorded in every cell's settings
+        self.trace_options = (
+            {"fallback_radius": args.fallback_radius} if args.fallback_radius is not None else {}
+        )
         self.config = EvalConfig(
             width=size[0],
             height=size[1],
@@ -195,11 +199,7 @@ class Bench:
             max_depth=args.max_depth,
             timing_repeats=args.timing_repeats,
             backend=args.backend,
-            trace=TraceConfig(
-                subdivide=args.subdivide,
-                engine=args.trace_engine,
-                **({"fallback_radius": args.fallback_radius} if args.fallback_radius is not None else {}),
-            ),
+            trace=TraceConfig(subdivide=args.subdivide, engine=args.trace_engine, **self.trace_options),
         )
         self.shared: dict = {}
         self.warm: set = set()
@@ -235,11 +235,7 @@ class Bench:
             )
             | ({"backend": self.args.backend} if self.args.backend != "jax" else {})
             | ({"subdivide": self.args.subdivide} if self.args.subdivide != 2 else {})
-            | (
-                {"fallback_radius": self.args.fallback_radius}
-                if self.args.fallback_radius is not None
-                else {}
-            )
+            | self.trace_options
             | {"trace_engine": self.args.trace_engine}
         )
 
