@@ -55,7 +55,9 @@ seed divide it out), ``sponza_grid_seed_spread_ci95`` (its 95 % interval, :func:
 ``--spread-fixed-rays``, ``sponza_grid_seed_spread_fixed_rays`` (the seeds' spread on seed 0's evaluation
 rays: the bake's and the reference's noise alone, what the sample counts control) with its interval,
 ``sponza_grid_seed_spread_bulk`` (the spread of the glossy MSE less each run's 1 % of pixels with the
-largest error, ``top_percent_share``: the sun glints that make the raw spread) with its interval; and
+largest error, ``top_percent_share``: the sun glints that make the raw spread) with its interval,
+``sponza_grid_seed_spread_tail_index`` (each seed's Hill index of its per-pixel glossy error,
+``evaluate.tail_index``: below 2 the raw spread does not fall as 1/√n with more pixels or samples); and
 the set-up costs of 128 usable probes
 on a line through Sponza's atrium, ``make_tracer_128_g512_s`` ≤ 10 and ``geometry_bake_128_g512_s`` ≤ 10
 (the median of ``COST_REPEATS`` warm runs, compile apart; ``--no-costs`` skips them), with
@@ -459,6 +461,7 @@ def summarise(m: dict) -> dict:
         "ci95_mse_glossy": m["ci95_mse_glossy_indirect"],
         "top_pixel_share_glossy": m["top_pixel_share_glossy_indirect"],
         "top_percent_share_glossy": m["top_percent_share_glossy_indirect"],
+        "tail_index_glossy": m["tail_index_glossy_indirect"],
         "ci95_mse_glossy_perfect_trace": m["ci95_mse_glossy_perfect_trace"],
         "ci95_mse_diffuse": m["ci95_mse_diffuse_indirect"],
         "shading_s_per_frame": m["shading_s_per_frame"],
@@ -532,18 +535,25 @@ def run_scene(key: str, args, plan: dict, result: dict) -> None:
         result["sponza_grid_seed_spread_over_black"] = seed_cv([x["glossy_over_black"] for x in runs])
         result["sponza_grid_seed_spread_ci95"] = cv_interval(g)
         # The bulk: the glossy MSE without its 1 % of pixels with the largest error (the sun glints that
-        # make the raw spread, experiments/README.md §2); null for cells cached before the share existed.
+        # make the raw spread, experiments/README.md §2); and how heavy that tail is, each seed's Hill index
+        # (``evaluate.tail_index``: below 2, no count of pixels or samples makes the raw spread fall as
+        # 1/√n). Null for cells cached before the figure existed.
         tail = [x.get("top_percent_share_glossy") for x in runs]
-        bulk_keys = ("sponza_grid_seed_spread_bulk", "sponza_grid_seed_spread_bulk_ci95")
-        if None in tail:
-            for k in bulk_keys:
-                result[k] = None
-                result["skipped"][k] = (
-                    "a cell was cached before top_percent_share existed: rerun with --fresh"
-                )
-        else:
+        hill = [x.get("tail_index_glossy") for x in runs]
+        for keys, figures in (
+            (("sponza_grid_seed_spread_bulk", "sponza_grid_seed_spread_bulk_ci95"), tail),
+            (("sponza_grid_seed_spread_tail_index",), hill),
+        ):
+            if None in figures:
+                for k in keys:
+                    result[k] = None
+                    result["skipped"][k] = "a cell was cached before this figure existed: rerun with --fresh"
+        if None not in tail:
             bulk = g * (1.0 - np.array(tail))
-            result[bulk_keys[0]], result[bulk_keys[1]] = seed_cv(bulk), cv_interval(bulk)
+            result["sponza_grid_seed_spread_bulk"] = seed_cv(bulk)
+            result["sponza_grid_seed_spread_bulk_ci95"] = cv_interval(bulk)
+        if None not in hill:
+            result["sponza_grid_seed_spread_tail_index"] = hill
         if args.spread_fixed_rays:  # the same seeds, every one evaluated on seed 0's rays
             fixed = np.array([b.cell("8x4x4", res, s, ray_seed=0)["mse_glossy"] for s in range(args.seeds)])
             result["sponza_grid_seed_spread_fixed_rays"] = seed_cv(fixed)

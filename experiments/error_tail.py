@@ -4,7 +4,8 @@ Reads every run of an experiment folder written by ``experiments/run.py`` (its `
 takes each run's per-pixel squared glossy error (``evaluate.pixel_sq_error``, what ``ci95_mse``
 resamples) and splits it into its *tail*, the 1 % of pixels with the largest error
 (``evaluate.top_share``, the evaluation's ``top_percent_share``), and its *bulk*, the rest. Prints, per
-seed, each method's MSE, tail share and how many of its tail pixels are also the baseline method's (a
+seed, each method's MSE, tail share, the tail's Hill index (``evaluate.tail_index``: below 2, no finite
+variance over the range sampled) and how many of its tail pixels are also the baseline method's (a
 sun glint no probe holds is in every method's tail; a method's own failure only in its own); then, per
 method, the MSE's and the bulk's spread over seeds (coefficient of variation) and each seed's MSE and
 bulk ÷ the baseline's on the same seed, with their geometric mean and 95 % t-interval
@@ -46,6 +47,10 @@ def _pct(v) -> str:
     return "—" if v is None else f"{v:.1%}"
 
 
+def _num(v) -> str:
+    return "—" if v is None else f"{v:.2f}"
+
+
 def _ratio(q) -> str:
     """``seed_paired_ratio``'s (ratio, lo, hi) as text."""
     return "—" if q is None else f"{q[0]:.2f} [{q[1]:.2f}, {q[2]:.2f}]"
@@ -58,7 +63,7 @@ def _baseline(method: str, baseline: str) -> str:
 
 def main(argv=None) -> dict:
     from convergence import seed_cv
-    from probeplace.evaluate import top_share
+    from probeplace.evaluate import tail_index, top_share
     from probeplace.experiment import seed_paired_ratio
 
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
@@ -80,12 +85,14 @@ def main(argv=None) -> dict:
             "mse": float(sq.mean()),
             "top_percent_share": share,
             "bulk": float(sq.mean()) * (1.0 - (share or 0.0)),
+            "tail_index": tail_index(sq, k),
             "tail_shared_with_baseline": None if base is None else len(base & tail[(m, s)]) / k,
         }
         shared = "—" if base is None else f"{r['tail_shared_with_baseline']:.0%}"
         print(
-            f"seed {s} {m:>10}: MSE {r['mse']:.3g}, top 1 % {r['top_percent_share']:.0%} of it, bulk "
-            f"{r['bulk']:.3g}, tail pixels shared with {args.baseline}: {shared}"
+            f"seed {s} {m:>10}: MSE {r['mse']:.3g}, top 1 % {r['top_percent_share']:.0%} of it (tail index "
+            f"{_num(r['tail_index'])}), bulk {r['bulk']:.3g}, tail pixels shared with {args.baseline}: "
+            f"{shared}"
         )
     per_method = {}
     for m in methods:

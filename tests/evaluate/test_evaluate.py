@@ -27,6 +27,7 @@ from probeplace.evaluate import (
     glossy_terms,
     hit_agreement,
     relative_mse,
+    tail_index,
     top_share,
     write_evaluation,
 )
@@ -255,6 +256,23 @@ def test_top_share_is_the_largest_pixels_part_of_the_sum():
     assert top_share(np.zeros(5), 1) is None
     v = np.random.default_rng(2).pareto(1.5, 1000)  # against a full sort
     assert top_share(v, 10) == pytest.approx(np.sort(v)[-10:].sum() / v.sum(), rel=1e-12)
+
+
+def test_tail_index_recovers_a_pareto_tail():
+    """Closed form: Hill's estimate is the maximum-likelihood α of a Pareto tail, with standard error
+    α / √k; 200,000 draws, k = 2,000: within 0.15 (4 standard errors at α = 1.5, 5 at α = 0.8).
+    Invariants: a scale does not move it; too few positive values or a flat top give None."""
+    rng = np.random.default_rng(7)
+    for alpha in (0.8, 1.5, 3.0):
+        x = rng.pareto(alpha, 200_000) + 1.0  # numpy's Lomax + 1: Pareto with x_m = 1
+        assert tail_index(x, 2000) == pytest.approx(alpha, abs=0.05 * alpha + 0.075), alpha
+        assert tail_index(37.0 * x, 2000) == pytest.approx(tail_index(x, 2000), rel=1e-9)
+    # the slow obvious form, a full sort
+    v = rng.pareto(1.2, 1000) + 1.0
+    s = np.sort(v)[::-1]
+    assert tail_index(v, 10) == pytest.approx(1.0 / np.mean(np.log(s[:10] / s[10])), rel=1e-12)
+    assert tail_index(np.array([0.0, 0.0, 5.0]), 1) is None  # one positive value: nothing to divide by
+    assert tail_index(np.full(10, 2.0), 3) is None  # the top equals the next: no tail
 
 
 def test_decomposition_adds_up_on_the_real_run(cornell_eval):

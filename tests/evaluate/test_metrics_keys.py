@@ -226,6 +226,15 @@ def _legacy_metrics(scene, lf, view, config, seed, ref, prim, crn, shading, perf
     top = lambda v: (
         float(np.sort(v, axis=None)[::-1][: max(1, v.size // 100)].sum() / v.sum()) if v.sum() > 0 else None
     )
+
+    # Hill's tail index from the same 1 % (k of them) over the next largest, by a full sort of the positive.
+    def hill(v):
+        pos = np.sort(v[v > 0])[::-1]
+        k = max(1, v.size // 100)
+        if pos.size <= k or np.mean(np.log(pos[:k] / pos[k])) <= 0:
+            return None
+        return float(1.0 / np.mean(np.log(pos[:k] / pos[k])))
+
     for c, sq in (
         ("diffuse_indirect", _sq_px(probe_d, ref_img["diffuse_indirect"])),
         ("glossy_indirect", terms["sq_px"]),
@@ -233,6 +242,7 @@ def _legacy_metrics(scene, lf, view, config, seed, ref, prim, crn, shading, perf
     ):
         metrics[f"top_pixel_share_{c}"] = share(sq)
         metrics[f"top_percent_share_{c}"] = top(sq)
+        metrics[f"tail_index_{c}"] = hill(sq)
     return metrics
 
 

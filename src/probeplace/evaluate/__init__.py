@@ -10,6 +10,7 @@ from ._decompose import glossy_terms as glossy_terms
 from ._decompose import hit_agreement as hit_agreement
 from ._decompose import pixel_sq_error as pixel_sq_error
 from ._decompose import relative_mse as relative_mse
+from ._decompose import tail_index as tail_index
 from ._decompose import top_share as top_share
 from ._evaluate import EvalResult as EvalResult
 from ._evaluate import evaluate as evaluate

@@ -72,6 +72,23 @@ def top_share(sq_px: np.ndarray, k: int) -> float | None:
     return float(np.sum(np.partition(sq, sq.size - k)[sq.size - k :])) / total if total > 0 else None
 
 
+def tail_index(sq_px: np.ndarray, k: int) -> float | None:
+    """Hill's estimate of the tail index α of the per-pixel squared error from its ``k`` largest values
+    (Hill 1975, "A simple general approach to inference about the tail of a distribution"): 1 / mean of
+    ln(x_(i) / x_(k+1)) over the k largest x_(i), x_(k+1) the next one. A tail P(X > x) ∝ x^−α with α < 2
+    has no finite variance over the range it was sampled in: there the MSE, a mean of such values, neither
+    settles as 1/√n nor has a bootstrap interval that holds — more pixels draw larger ones (issue 33,
+    experiments/README.md §2). None when fewer than k + 1 values are positive, or the k largest equal the
+    next one (no tail to measure)."""
+    x = np.ravel(np.asarray(sq_px, np.float64))
+    x = x[x > 0]
+    if not 0 < k < x.size:
+        return None
+    top = np.partition(x, x.size - k - 1)[x.size - k - 1 :]  # x_(k+1) first, then the k largest
+    mean_log = float(np.mean(np.log(top[1:] / top[0])))
+    return 1.0 / mean_log if mean_log > 0 else None
+
+
 def pixel_means(v: np.ndarray, n_pixels: int, spp: int) -> np.ndarray:
     """(n_pixels·spp, …) pixel-major samples → (n_pixels, …) per-pixel means."""
     v = np.asarray(v, np.float64)

@@ -42,7 +42,7 @@ from typing import Any
 import numpy as np
 
 from ._config import EvalConfig
-from ._decompose import bootstrap_ci, mean_sq_error, relative_mse, top_share
+from ._decompose import bootstrap_ci, mean_sq_error, relative_mse, tail_index, top_share
 
 #: The figures every component record may have, each ``<family>_<component>`` in metrics.json.
 FAMILIES = ("mse", "noise_floor", "mse_black", "relmse", "relmse_black", "ci95_mse")
@@ -113,6 +113,11 @@ def _top_percent_share(m: ComponentImages) -> float | None:
     return top_share(m.sq_px, max(1, np.size(m.sq_px) // 100))
 
 
+def _tail_index(m: ComponentImages) -> float | None:
+    """Hill's tail index of the per-pixel squared error from its 1 % of largest pixels (one at least)."""
+    return tail_index(m.sq_px, max(1, np.size(m.sq_px) // 100))
+
+
 @dataclasses.dataclass(frozen=True)
 class RunSettings:
     """What was evaluated and how: scene, view, image size, sample counts (the ones rendered, chosen
@@ -153,6 +158,11 @@ class ComponentScores:
     # seed-to-seed spread; the bulk, mse × (1 − this), repeats within 1.2 % (issue 33; experiments/README.md
     # §2).
     top_percent_share: float | None = measured(_top_percent_share)
+    # How heavy that tail is: below 2 the per-pixel squared error has no finite variance over the range
+    # sampled, so ``ci95_mse`` (a bootstrap over pixels) understates the MSE's uncertainty and no count of
+    # pixels or samples makes it repeat as 1/√n. Sponza's glossy error: 0.7–1.3 on every run of its
+    # comparison (issue 33).
+    tail_index: float | None = measured(_tail_index)
 
 
 @dataclasses.dataclass(frozen=True)
