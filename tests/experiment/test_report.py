@@ -344,10 +344,14 @@ def test_identical_placements_are_marked(tmp_path):
 
 def test_all_runs_shows_the_largest_pixels_share(tmp_path):
     """The "one pixel" column is the run's ``top_pixel_share_glossy_indirect`` (0.75: three quarters of the
-    glossy MSE is one pixel's), "top 1 %" its ``top_percent_share_glossy_indirect``; a run written before
-    the figures existed shows dashes."""
+    glossy MSE is one pixel's), "top 1 %" its ``top_percent_share_glossy_indirect``, "tail α" its
+    ``tail_index_glossy_indirect``; a run written before the figures existed shows dashes."""
     exp = tmp_path / "top"
-    extra = {"top_pixel_share_glossy_indirect": 0.75, "top_percent_share_glossy_indirect": 0.9}
+    extra = {
+        "top_pixel_share_glossy_indirect": 0.75,
+        "top_percent_share_glossy_indirect": 0.9,
+        "tail_index_glossy_indirect": 1.25,
+    }
     _fake_run(exp, "grid", 8, eval_extra=extra)
     _fake_run(exp, "skeleton", 8)
     text = make_report(exp).read_text()
@@ -360,3 +364,4 @@ def test_all_runs_shows_the_largest_pixels_share(tmp_path):
     )
     assert (grid_row[col], skel_row[col]) == ("75%", "—")
     assert head[col + 1] == "top 1 %" and (grid_row[col + 1], skel_row[col + 1]) == ("90%", "—")
+    assert head[col + 2] == "tail α" and (grid_row[col + 2], skel_row[col + 2]) == ("1.25", "—")

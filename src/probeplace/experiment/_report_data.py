@@ -166,6 +166,12 @@ def top_percent_share(r: dict, component: str = PRIMARY) -> float | None:
     return _component_figure(r, "top_percent_share", component)
 
 
+def tail_index(r: dict, component: str = PRIMARY) -> float | None:
+    """Hill's tail index of the run's ``component`` per-pixel squared error (``evaluate.tail_index``; None
+    for a run written before the figure existed, or with no tail to measure)."""
+    return _component_figure(r, "tail_index", component)
+
+
 def noise_floor(r: dict, component: str = PRIMARY) -> float | None:
     """The reference's noise floor of the run's ``component`` (None when missing or not finite)."""
     return _component_figure(r, "noise_floor", component)
