@@ -107,15 +107,20 @@ def _top_pixel_share(m: ComponentImages) -> float | None:
     return top_share(m.sq_px, 1)
 
 
+def _one_percent(m: ComponentImages) -> int:
+    """How many pixels the error's tail holds: 1 % of them, one at least."""
+    return max(1, np.size(m.sq_px) // 100)
+
+
 def _top_percent_share(m: ComponentImages) -> float | None:
     """The share of the summed per-pixel squared error made by the 1 % of pixels with the largest (one
     pixel at least; None for no error)."""
-    return top_share(m.sq_px, max(1, np.size(m.sq_px) // 100))
+    return top_share(m.sq_px, _one_percent(m))
 
 
 def _tail_index(m: ComponentImages) -> float | None:
     """Hill's tail index of the per-pixel squared error from its 1 % of largest pixels (one at least)."""
-    return tail_index(m.sq_px, max(1, np.size(m.sq_px) // 100))
+    return tail_index(m.sq_px, _one_percent(m))
 
 
 @dataclasses.dataclass(frozen=True)
@@ -160,8 +165,8 @@ class ComponentScores:
     top_percent_share: float | None = measured(_top_percent_share)
     # How heavy that tail is: below 2 the per-pixel squared error has no finite variance over the range
     # sampled, so ``ci95_mse`` (a bootstrap over pixels) understates the MSE's uncertainty and no count of
-    # pixels or samples makes it repeat as 1/√n. Sponza's glossy error: 0.7–1.3 on every run of its
-    # comparison (issue 33).
+    # pixels or samples makes it repeat as 1/√n. Sponza's glossy error: 0.7–1.5 on every run measured
+    # (issue 33).
     tail_index: float | None = measured(_tail_index)
 
 
