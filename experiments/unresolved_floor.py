@@ -22,7 +22,7 @@ floor. It is reported among the rays whose origin one of the K nearest usable pr
 clear of every depth edge by M geometry texels as the probe sees them (:func:`_probes_see`), the floor of
 a trace that reads maps of that resolution (experiments/README.md §2, "The floor at the maps'
 resolution": 2.40 % exact, 2.84 % at half a texel, 3.46 % at one, on the 16×8×8 grid at 512², 32 points
-a ray; "The floor sampled finer": 2.44 % exact and 3.02 % at half a texel with 128 points).
+a ray; "The floor sampled finer": 2.44 % exact and 3.02 % at half a texel with 128 points, 3.10 % with 256).
 
     PROBEPLACE_SCENE_PATH=/work/shared/scenes .venv/bin/python experiments/unresolved_floor.py \\
         --grid 16x8x8 --geometry-res 512 --rays 8000
