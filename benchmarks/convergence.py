@@ -81,7 +81,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from probeplace._core import ResourceError, scene_box, write_text_atomic
+from probeplace._core import ConfigError, ResourceError, scene_box, write_text_atomic
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 from _common import RESULTS, atrium_line, env_info, setup_scene_path, write_result
@@ -538,22 +538,19 @@ def run_scene(key: str, args, plan: dict, result: dict) -> None:
         # make the raw spread, experiments/README.md §2); and how heavy that tail is, each seed's Hill index
         # (``evaluate.tail_index``: below 2, no count of pixels or samples makes the raw spread fall as
         # 1/√n). Null for cells cached before the figure existed.
+        cached = "a cell was cached before this figure existed: rerun with --fresh"
         tail = [x.get("top_percent_share_glossy") for x in runs]
-        hill = [x.get("tail_index_glossy") for x in runs]
-        for keys, figures in (
-            (("sponza_grid_seed_spread_bulk", "sponza_grid_seed_spread_bulk_ci95"), tail),
-            (("sponza_grid_seed_spread_tail_index",), hill),
-        ):
-            if None in figures:
-                for k in keys:
-                    result[k] = None
-                    result["skipped"][k] = "a cell was cached before this figure existed: rerun with --fresh"
-        if None not in tail:
+        if None in tail:
+            for k in ("sponza_grid_seed_spread_bulk", "sponza_grid_seed_spread_bulk_ci95"):
+                result[k], result["skipped"][k] = None, cached
+        else:
             bulk = g * (1.0 - np.array(tail))
             result["sponza_grid_seed_spread_bulk"] = seed_cv(bulk)
             result["sponza_grid_seed_spread_bulk_ci95"] = cv_interval(bulk)
-        if None not in hill:
-            result["sponza_grid_seed_spread_tail_index"] = hill
+        hill, k = [x.get("tail_index_glossy") for x in runs], "sponza_grid_seed_spread_tail_index"
+        result[k] = None if None in hill else hill
+        if None in hill:
+            result["skipped"][k] = cached
         if args.spread_fixed_rays:  # the same seeds, every one evaluated on seed 0's rays
             fixed = np.array([b.cell("8x4x4", res, s, ray_seed=0)["mse_glossy"] for s in range(args.seeds)])
             result["sponza_grid_seed_spread_fixed_rays"] = seed_cv(fixed)
@@ -736,8 +733,13 @@ def parse_args(argv=None) -> argparse.Namespace:
         "0.34; 1 = McGuire's single resolution)",
     )
     args = ap.parse_args(argv)
-    if args.fallback_radius is not None and not args.fallback_radius > 0:
-        ap.error(f"--fallback-radius must be a positive number of probe spacings, got {args.fallback_radius}")
+    if args.fallback_radius is not None:  # the tracer's own declared bound, refused before any work
+        from probeplace.probes import TraceConfig
+
+        try:
+            TraceConfig(fallback_radius=args.fallback_radius)
+        except ConfigError as e:
+            ap.error(f"--fallback-radius: {e}")
     q = args.quick
     args.eval_spp = args.eval_spp or (16 if q else 32)
     args.grid128_res = args.grid128_res or (16 if q else 64)
