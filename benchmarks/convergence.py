@@ -55,7 +55,8 @@ seed divide it out), ``sponza_grid_seed_spread_ci95`` (its 95 % interval, :func:
 ``--spread-fixed-rays``, ``sponza_grid_seed_spread_fixed_rays`` (the seeds' spread on seed 0's evaluation
 rays: the bake's and the reference's noise alone, what the sample counts control) with its interval,
 ``sponza_grid_seed_spread_bulk`` (the spread of the glossy MSE less each run's 1 % of pixels with the
-largest error, ``top_percent_share``: the sun glints that make the raw spread) with its interval,
+largest error, ``top_percent_share``, which makes the raw spread: mostly too-bright reads at small dark
+spots and unresolved rays, ``experiments/tail_causes.py``) with its interval,
 ``sponza_grid_seed_spread_tail_index`` (each seed's Hill index of its per-pixel glossy error,
 ``evaluate.tail_index``: below 2 the raw spread does not fall as 1/√n with more pixels or samples); and
 the set-up costs of 128 usable probes
@@ -534,10 +535,10 @@ def run_scene(key: str, args, plan: dict, result: dict) -> None:
         result["sponza_grid_seed_spread"] = result["sponza_grid128_seed_cv"]  # issue 33's name, same figure
         result["sponza_grid_seed_spread_over_black"] = seed_cv([x["glossy_over_black"] for x in runs])
         result["sponza_grid_seed_spread_ci95"] = cv_interval(g)
-        # The bulk: the glossy MSE without its 1 % of pixels with the largest error (the sun glints that
-        # make the raw spread, experiments/README.md §2); and how heavy that tail is, each seed's Hill index
-        # (``evaluate.tail_index``: below 2, no count of pixels or samples makes the raw spread fall as
-        # 1/√n). Null for cells cached before the figure existed.
+        # The bulk: the glossy MSE without its 1 % of pixels with the largest error (which make the raw
+        # spread, experiments/README.md §2, "What the tail is made of"); and how heavy that tail is, each
+        # seed's Hill index (``evaluate.tail_index``: below 2, no count of pixels or samples makes the raw
+        # spread fall as 1/√n). Null for cells cached before the figure existed.
         cached = "a cell was cached before this figure existed: rerun with --fresh"
         tail = [x.get("top_percent_share_glossy") for x in runs]
         if None in tail:

@@ -22,11 +22,14 @@ import pytest
 from probeplace._core import ConfigError
 from probeplace.evaluate import (
     EvalConfig,
+    agreeing_hits,
     bootstrap_ci,
     evaluate,
     glossy_terms,
     hit_agreement,
     relative_mse,
+    sample_charges,
+    sample_errors,
     tail_index,
     top_share,
     write_evaluation,
@@ -246,6 +249,25 @@ def test_bootstrap_relmse_and_agreement():
     t_ex = np.array([1.01, 2.2, np.inf, 4.0, 5.0, 1.0])
     assert hit_agreement(t_lf, t_ex, st, rtol=0.02) == (0.5, 4)
     assert hit_agreement(t_lf, t_ex, np.zeros(6, int)) == (None, 0)
+    np.testing.assert_array_equal(agreeing_hits(t_lf, t_ex, st, rtol=0.02), [1, 0, 0, 1, 0, 0])
+    np.testing.assert_array_equal(agreeing_hits(t_lf, t_ex, st, rtol=0.02, atol=0.2), [1, 1, 0, 1, 0, 0])
+
+
+def test_sample_charges_add_up_over_parts_and_pixels():
+    """The charges of all samples add up to the MSE; those of some pixels' samples to those pixels' sum of
+    squared errors ÷ (pixels × channels); charges of parts that add up to a sample's error add up to its
+    charge."""
+    rng = np.random.default_rng(4)
+    spp, n_px = 4, 50
+    w, lp, lr = (rng.uniform(0, 1, (n_px * spp, 3)) for _ in range(3))
+    e_s, e_px = sample_errors(w, lp, lr, spp)
+    c = sample_charges(e_s, e_px)
+    assert c.sum() == pytest.approx(np.mean(e_px**2), rel=1e-12)
+    some = np.arange(n_px) % 3 == 0
+    per_px = c.reshape(n_px, spp).sum(axis=1)
+    assert per_px[some].sum() == pytest.approx(np.sum(e_px[some] ** 2) / e_px.size, rel=1e-12)
+    part = w * (lp - 0.5) / spp  # e_s = part + (e_s − part)
+    np.testing.assert_allclose(sample_charges(part, e_px) + sample_charges(e_s - part, e_px), c, rtol=1e-12)
 
 
 def test_top_share_is_the_largest_pixels_part_of_the_sum():

@@ -105,6 +105,15 @@ def sample_errors(w, l_est, l_ref, spp: int) -> tuple[np.ndarray, np.ndarray]:
     return e_s, e_s.reshape(w.shape[0] // spp, spp, -1).sum(axis=1)
 
 
+def sample_charges(e_part: np.ndarray, e_px: np.ndarray) -> np.ndarray:
+    """Each sample's charge in the MSE (module docstring, "Additive split"): its error ``e_part`` (n, 3;
+    a sample's whole error e_s or any additive part of it) times its pixel's total error ``e_px``
+    (n / S, 3), / (pixels × channels). Over any parts that add up to e_s, the charges of all samples add
+    up to the MSE mean(e_px²); over the samples of some pixels, to those pixels' share of it."""
+    spp = e_part.shape[0] // e_px.shape[0]
+    return np.sum(np.repeat(e_px, spp, axis=0) * e_part, axis=1) / e_px.size
+
+
 def glossy_terms(
     w: np.ndarray,
     l_probe: np.ndarray,
@@ -132,8 +141,7 @@ def glossy_terms(
     e_perf = sample_errors(w, l_perfect, l_ref, spp)[1]
     mse = float(np.mean(e_px**2))
     mse_p = float(np.mean(e_perf**2))
-    # Per-sample charge: the sample's own error times its pixel's total error, / (pixels × channels).
-    charge = np.sum(np.repeat(e_px, spp, axis=0) * e_s, axis=1) / e_px.size
+    charge = sample_charges(e_s, e_px)
     by_status = {name: float(np.sum(charge[status == k])) for k, name in STATUS_NAMES.items()}
     e_res = (e_s * (status != TraceStatus.UNRESOLVED)[:, None]).reshape(n_px, spp, -1).sum(axis=1)
     return {
@@ -177,19 +185,29 @@ def relative_mse(probe: np.ndarray, ref: np.ndarray, *, eps: float = 0.01) -> fl
     return float(np.mean((p - r) ** 2 / (r * r + eps * scale)))
 
 
+def agreeing_hits(
+    t_lf: np.ndarray, t_exact: np.ndarray, status: np.ndarray, *, rtol: float = 0.02, atol: float = 0.0
+) -> np.ndarray:
+    """Per ray: a TraceStatus.HIT whose exact hit is finite and within |t_lf − t_exact| ≤ rtol·t_exact + atol
+    (an exact miss disagrees)."""
+    te = np.asarray(t_exact, np.float64)
+    finite = np.isfinite(te)
+    close = (
+        np.abs(np.asarray(t_lf, np.float64) - np.where(finite, te, 0.0))
+        <= rtol * np.where(finite, te, 0.0) + atol
+    )
+    return (np.asarray(status) == TraceStatus.HIT) & finite & close
+
+
 def hit_agreement(
     t_lf: np.ndarray, t_exact: np.ndarray, status: np.ndarray, *, rtol: float = 0.02, atol: float = 0.0
 ) -> tuple[float | None, int]:
-    """(share of TraceStatus.HIT rays with a finite exact hit within |t_lf − t_exact| ≤ rtol·t_exact + atol —
-    an exact miss disagrees —, number of TraceStatus.HIT rays); the share is None when there is none."""
-    hit = np.asarray(status) == 1
-    n = int(hit.sum())
+    """(share of TraceStatus.HIT rays that are :func:`agreeing_hits`, number of TraceStatus.HIT rays); the
+    share is None when there is none."""
+    n = int(np.sum(np.asarray(status) == TraceStatus.HIT))
     if n == 0:
         return None, 0
-    te = np.asarray(t_exact, np.float64)[hit]
-    tl = np.asarray(t_lf, np.float64)[hit]
-    ok = np.isfinite(te) & (np.abs(tl - te) <= rtol * np.where(np.isfinite(te), te, 0.0) + atol)
-    return float(np.mean(ok)), n
+    return float(np.sum(agreeing_hits(t_lf, t_exact, status, rtol=rtol, atol=atol)) / n), n
 
 
 def light_leak(

@@ -290,10 +290,9 @@ def _glossy_scores(scene, config: EvalConfig, prim, crn, shading, perfect, imgs,
     st = shading.status
     gl = st >= 0
     n_gl = int(gl.sum())
-    lo, hi = scene_box(scene)
     terms = glossy_terms(prim.w_glossy, shading.glossy, crn.radiance, perfect.radiance, st, S)
     agree, n_agree = hit_agreement(
-        shading.t, perfect.t_exact, st, rtol=config.agreement_rtol, atol=1e-4 * float(np.linalg.norm(hi - lo))
+        shading.t, perfect.t_exact, st, rtol=config.agreement_rtol, atol=agreement_atol(scene)
     )
     n_exact = int(np.sum(gl & np.isfinite(perfect.t_exact)))
     floor = float(np.mean((prim.w_glossy**2 * crn.var_of_mean).reshape(H * W, S, 3).sum(axis=1) / S**2))
@@ -324,6 +323,13 @@ def _glossy_scores(scene, config: EvalConfig, prim, crn, shading, perfect, imgs,
         ci95_mse_perfect_trace=interval95(config, terms["sq_px_perfect"]),
         ci95_mse_trace_share=interval95(config, terms["sq_px"] - terms["sq_px_perfect"]),
     )
+
+
+def agreement_atol(scene: Scene) -> float:
+    """The absolute part of the hit-agreement tolerance (``EvalConfig.agreement_rtol`` is the relative
+    part): 1e-4 of the scene box's diagonal, float32's reach at a scene's far end."""
+    lo, hi = scene_box(scene)
+    return 1e-4 * float(np.linalg.norm(hi - lo))
 
 
 def _seen_shares(status: np.ndarray, seen: np.ndarray) -> dict:

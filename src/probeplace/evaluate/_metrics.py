@@ -158,10 +158,10 @@ class ComponentScores:
     # Near 1, the MSE is one pixel's: on Sponza one glossy ray reflecting a sun highlight, which no probe
     # holds, made 75 % of every method's glossy MSE on one seed (issue 33; experiments/README.md §2).
     top_pixel_share: float | None = measured(_top_pixel_share)
-    # The error's tail apart from its bulk: on Sponza's 8×4×4 grid the top 1 % of pixels (sun glints no
-    # probe holds, and each method's own worst pixels) make 32–48 % of the glossy MSE and all of its
-    # seed-to-seed spread; the bulk, mse × (1 − this), repeats within 1.2 % (issue 33; experiments/README.md
-    # §2).
+    # The error's tail apart from its bulk: on Sponza's 8×4×4 grid the top 1 % of pixels (mostly the probes'
+    # own too-bright reads at small dark spots, and unresolved rays; a sun glint on some seeds:
+    # experiments/tail_causes.py) make 32–48 % of the glossy MSE and all of its seed-to-seed spread; the
+    # bulk, mse × (1 − this), repeats within 1.2 % (issue 33; experiments/README.md §2).
     top_percent_share: float | None = measured(_top_percent_share)
     # How heavy that tail is: below 2 the per-pixel squared error has no finite variance over the range
     # sampled, so ``ci95_mse`` (a bootstrap over pixels) understates the MSE's uncertainty and no count of
