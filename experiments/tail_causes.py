@@ -37,7 +37,15 @@ import numpy as np
 sys.path.insert(0, str(Path(__file__).resolve().parent.parent / "benchmarks"))
 
 CAUSES = ("miss", "unresolved", "wrong hit", "view dependence", "read too bright", "read too dark")
-_LUMA = np.array([0.2126, 0.7152, 0.0722])
+
+
+def _lum(rgb: np.ndarray) -> np.ndarray:
+    """Rec. 709 luminance (``_core.luminance``) of a host array, back on the host (for signs and display)."""
+    import jax.numpy as jnp
+
+    from probeplace._core import luminance
+
+    return np.asarray(luminance(jnp.asarray(rgb)), np.float64)
 
 
 def tail_causes(w, l_probe, l_ref, l_diffuse, status, agree, spp: int, top_percent: float = 1.0) -> dict:
@@ -67,7 +75,7 @@ def tail_causes(w, l_probe, l_ref, l_diffuse, status, agree, spp: int, top_perce
         raise ValueError(
             "a sample without a traced ray (status other than miss, hit, unresolved) has a weight"
         )
-    bright = (np.asarray(l_probe) - np.asarray(l_diffuse)) @ _LUMA > 0
+    bright = _lum(np.asarray(l_probe) - np.asarray(l_diffuse)) > 0
     whole, view, read = (sample_charges(e, e_px) for e in (e_s, part_view, part_read))
     charge = {
         "miss": np.where(st == TraceStatus.MISS, whole, 0.0),
@@ -98,8 +106,8 @@ def _worst(w, l_probe, l_ref, l_diffuse, l_hi, status, agree, spp: int, k: int) 
     from probeplace.evaluate import sample_errors
 
     e_s, e_px = sample_errors(w, l_probe, l_ref, spp)
-    sq, e = np.mean(e_px**2, axis=1), e_s @ _LUMA
-    lum = lambda a, j: float(np.asarray(a)[j] @ _LUMA)
+    sq, e = np.mean(e_px**2, axis=1), _lum(e_s)
+    lum = lambda a, j: float(_lum(np.asarray(a)[j]))
     rows = []
     for p in np.argsort(sq, kind="stable")[::-1][:k]:
         j = p * spp + int(np.argmax(np.abs(e[p * spp : (p + 1) * spp])))
