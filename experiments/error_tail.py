@@ -63,7 +63,7 @@ def _baseline(method: str, baseline: str) -> str:
 
 def main(argv=None) -> dict:
     from convergence import seed_cv
-    from probeplace.evaluate import tail_index, top_share
+    from probeplace.evaluate import tail_count, tail_index, top_share
     from probeplace.experiment import seed_paired_ratio
 
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
@@ -75,7 +75,7 @@ def main(argv=None) -> dict:
         ap.exit(2, f"error: no run with eval/images.exr under {args.folder}: run experiments/run.py first\n")
     methods = sorted({m for m, _ in runs})
     seeds = sorted({s for _, s in runs})
-    k = max(1, next(iter(runs.values())).size // 100)
+    k = tail_count(next(iter(runs.values())).size)
     tail = {key: set(np.argpartition(sq, sq.size - k)[sq.size - k :]) for key, sq in runs.items()}
     fig = {}  # (method, seed) → the run's figures
     for (m, s), sq in sorted(runs.items(), key=lambda kv: (kv[0][1], kv[0][0])):

@@ -12,10 +12,10 @@ its error times its pixel's, so the charges add up exactly) to one cause:
   split by its sign: ``read too bright`` / ``read too dark`` (luminance).
 
 It prints each cause's share of the tail's squared error (the ``--top`` % of pixels with the largest,
-``evaluate.top_share``'s pixels) and of the whole MSE. ``--ref-spp N`` adds an independent CRN reference
-of N paths a ray: the MSE and tail share against it, and the MSE of the cell's reference against it (the
-noise the reference adds, which its noise floor estimates). ``--show K`` lists the K worst pixels' largest
-ray.
+``evaluate.tail_count`` of them: at 1 % the metrics' ``top_percent_share`` pixels) and of the whole MSE.
+``--ref-spp N`` adds an independent CRN reference of N paths a ray: the MSE and tail share against it,
+and the MSE of the cell's reference against it (the noise the reference adds, which its noise floor
+estimates). ``--show K`` lists the K worst pixels' largest ray.
 
     PROBEPLACE_SCENE_PATH=../shared/scenes .venv/bin/python experiments/tail_causes.py \\
         --grid 8x4x4 --seed 0 --ref-spp 64 --show 10
@@ -62,7 +62,7 @@ def tail_causes(w, l_probe, l_ref, l_diffuse, status, agree, spp: int, top_perce
     Raises:
         ValueError: a sample with a weight has no traced ray (its error would go to no cause).
     """
-    from probeplace.evaluate import sample_charges, sample_errors
+    from probeplace.evaluate import sample_charges, sample_errors, tail_count, top_share
     from probeplace.probes import TraceStatus
 
     e_s, e_px = sample_errors(w, l_probe, l_ref, spp)
@@ -86,16 +86,12 @@ def tail_causes(w, l_probe, l_ref, l_diffuse, status, agree, spp: int, top_perce
         "read too dark": np.where(agree & ~bright, read, 0.0),
     }
     sq_px = np.mean(e_px**2, axis=1)
-    k = max(1, round(sq_px.size * top_percent / 100))
-    in_tail = np.zeros(sq_px.size, bool)
-    in_tail[np.argsort(sq_px, kind="stable")[::-1][:k]] = True
-    in_tail = np.repeat(in_tail, spp)
-    out = {
-        "mse": float(sq_px.mean()),
-        "tail_pixels": k,
-        "tail_share": float(sq_px[in_tail[::spp]].sum() / sq_px.sum()),
-    }
-    for name, rows in (("tail", in_tail), ("all", np.ones_like(in_tail))):
+    k = tail_count(sq_px.size, top_percent)
+    tail_px = np.zeros(sq_px.size, bool)
+    tail_px[np.argsort(sq_px, kind="stable")[::-1][:k]] = True
+    out = {"mse": float(sq_px.mean()), "tail_pixels": k, "tail_share": top_share(sq_px, k)}
+    for name, px in (("tail", tail_px), ("all", np.ones_like(tail_px))):
+        rows = np.repeat(px, spp)
         total = float(whole[rows].sum())
         out[name] = {c: float(v[rows].sum() / total) for c, v in charge.items()}
     return out
@@ -143,7 +139,14 @@ def main(argv=None) -> dict:
 
     import convergence as cv
     from probeplace._core import ConfigError
-    from probeplace.evaluate import agreeing_hits, agreement_atol, crn_reference, perfect_trace, shade_probes
+    from probeplace.evaluate import (
+        agreeing_hits,
+        agreement_atol,
+        crn_reference,
+        perfect_trace,
+        sample_errors,
+        shade_probes,
+    )
     from probeplace.probes import glossy_maps
 
     cv.setup_scene_path()
@@ -177,7 +180,7 @@ def main(argv=None) -> dict:
         cfg = dataclasses.replace(b.config, glossy_ref_spp=args.ref_spp)
         hi = crn_reference(b.scene, prim, cfg, seed=args.seed + 1, caster=b.caster).radiance  # other paths
         against = tail_causes(w, sh.glossy, hi, crn.diffuse_at_hit, sh.status, agree, S, args.top)
-        e_ref = (w * (crn.radiance - hi) / S).reshape(-1, S, 3).sum(axis=1)
+        e_ref = sample_errors(w, crn.radiance, hi, S)[1]
         out["against_ref_hi"] = {
             "ref_spp": args.ref_spp,
             "mse": against["mse"],

@@ -30,6 +30,7 @@ from probeplace.evaluate import (
     relative_mse,
     sample_charges,
     sample_errors,
+    tail_count,
     tail_index,
     top_share,
     write_evaluation,
@@ -278,6 +279,12 @@ def test_top_share_is_the_largest_pixels_part_of_the_sum():
     assert top_share(np.zeros(5), 1) is None
     v = np.random.default_rng(2).pareto(1.5, 1000)  # against a full sort
     assert top_share(v, 10) == pytest.approx(np.sort(v)[-10:].sum() / v.sum(), rel=1e-12)
+
+
+def test_tail_count_is_the_percentage_rounded_down_one_at_least():
+    assert tail_count(3072) == 30 and tail_count(27_648) == 276  # 64×48 and 192×144 images
+    assert tail_count(50) == 1 and tail_count(0) == 1
+    assert tail_count(100, 5.0) == 5 and tail_count(6, 100 / 6) == 1 and tail_count(400, 100.0) == 400
 
 
 def test_tail_index_recovers_a_pareto_tail():

@@ -13,6 +13,7 @@ from ._decompose import pixel_sq_error as pixel_sq_error
 from ._decompose import relative_mse as relative_mse
 from ._decompose import sample_charges as sample_charges
 from ._decompose import sample_errors as sample_errors
+from ._decompose import tail_count as tail_count
 from ._decompose import tail_index as tail_index
 from ._decompose import top_share as top_share
 from ._evaluate import EvalResult as EvalResult

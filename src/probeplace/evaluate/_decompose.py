@@ -63,6 +63,12 @@ def pixel_sq_error(a: np.ndarray, b: np.ndarray) -> np.ndarray:
     return np.mean(d * d, axis=-1).reshape(-1)
 
 
+def tail_count(n_pixels: int, percent: float = 1.0) -> int:
+    """How many pixels an error's tail holds: ``percent`` % of ``n_pixels``, rounded down, one at least
+    (1 %: 30 of a 64×48 image's 3,072)."""
+    return max(1, int(n_pixels * percent // 100))
+
+
 def top_share(sq_px: np.ndarray, k: int) -> float | None:
     """The share of the summed per-pixel squared error made by the ``k`` pixels with the largest (None
     for no error): the sum of the k largest, whatever their order or ties."""

@@ -42,7 +42,7 @@ from typing import Any
 import numpy as np
 
 from ._config import EvalConfig
-from ._decompose import bootstrap_ci, mean_sq_error, relative_mse, tail_index, top_share
+from ._decompose import bootstrap_ci, mean_sq_error, relative_mse, tail_count, tail_index, top_share
 
 #: The figures every component record may have, each ``<family>_<component>`` in metrics.json.
 FAMILIES = ("mse", "noise_floor", "mse_black", "relmse", "relmse_black", "ci95_mse")
@@ -108,8 +108,8 @@ def _top_pixel_share(m: ComponentImages) -> float | None:
 
 
 def _one_percent(m: ComponentImages) -> int:
-    """How many pixels the error's tail holds: 1 % of them, one at least."""
-    return max(1, np.size(m.sq_px) // 100)
+    """How many pixels the error's tail holds: 1 % of them, one at least (``tail_count``)."""
+    return tail_count(np.size(m.sq_px))
 
 
 def _top_percent_share(m: ComponentImages) -> float | None:
