@@ -1,12 +1,14 @@
 """Convergence of the probe error with probe density and map resolution, and what the error is made of.
 
     .venv/bin/python benchmarks/convergence.py [--quick] [--scenes cornell sponza]
-        [--bake-spp N | scene:N ...] [--n-sub N] [--res 16 32 64] [--grids 4x4x4 8x4x4] [--seeds 3]
-        [--fresh] [--geometry-res N] [--backend jax|mitsuba] [--no-auto] [--no-costs]
+        [--bake-spp N | scene:N ...] [--n-sub N] [--texel-rays surfel|jittered] [--res 16 32 64]
+        [--grids 4x4x4 8x4x4] [--seeds 3] [--fresh] [--geometry-res N] [--backend jax|mitsuba]
+        [--no-auto] [--no-costs]
 
 For each scene (Cornell box "front", Crytek Sponza "CameraMain"), uniform grids of increasing density
 (cell centres of the scene box) × radiance-map resolutions, baked with the path tracer
-(``probes.path_traced_radiance``, ``--bake-spp`` paths × ``--n-sub``² jittered rays per texel, path depth
+(``probes.path_traced_radiance``, ``--bake-spp`` paths × ``--n-sub``² rays per texel along its surfel's
+direction or jittered over it (``--texel-rays``, ``probes.BakeConfig.texel_rays``), path depth
 = the evaluation's ``max_depth`` − 1) and evaluated (``probeplace.evaluate``: light-field shading,
 ``glossy_filter`` of the evaluation's default). Per cell: the glossy and diffuse MSE, the glossy MSE's
 parts (perfect trace, trace share and ``trace_excess``, split by ray status, resolved only), noise floors,
@@ -228,6 +230,7 @@ class Bench:
                 "glossy_filter": c.glossy_filter,
                 "bake_spp": self.bake_spp,
                 "n_sub": self.args.n_sub,
+                "texel_rays": self.args.texel_rays,
                 "bake_depth": c.max_depth - 1,
                 "first_hit_lobes": "diffuse",  # what texels store (probes.path_traced_radiance's default)
             }
@@ -275,7 +278,12 @@ class Bench:
         # ~2^18 radiance rays and ~2^21 geometry rays a batch (at 512² geometry: 8 probes)
         per_batch = int(max(1, min(len(pos), (1 << 18) // (res * res * a.n_sub**2), (1 << 21) // geo**2)))
         cfg = BakeConfig(
-            radiance_res=res, geometry_res=geo, n_sub=a.n_sub, probes_per_batch=per_batch, progress=False
+            radiance_res=res,
+            geometry_res=geo,
+            n_sub=a.n_sub,
+            texel_rays=a.texel_rays,
+            probes_per_batch=per_batch,
+            progress=False,
         )
         fn = path_traced_radiance(
             self.scene,
@@ -652,7 +660,14 @@ def parse_args(argv=None) -> argparse.Namespace:
         default=None,
         help="paths per texel ray, e.g. 8 (all scenes) or cornell:32 (default 8; quick 4)",
     )
-    ap.add_argument("--n-sub", type=int, default=1, help="n_sub² jittered rays per texel")
+    ap.add_argument("--n-sub", type=int, default=1, help="n_sub² rays per radiance texel")
+    ap.add_argument(
+        "--texel-rays",
+        default="surfel",
+        choices=["surfel", "jittered"],
+        help="where a radiance texel's rays leave (probes.BakeConfig.texel_rays): along its surfel's "
+        "direction (default) or jittered over the texel",
+    )
     ap.add_argument("--max-depth", type=int, default=4, help="evaluation path depth (bake: − 1)")
     ap.add_argument("--eval-spp", type=int, default=None, help="reference paths/pixel (default 32; quick 16)")
     ap.add_argument(

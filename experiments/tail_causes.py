@@ -124,6 +124,12 @@ def main(argv=None) -> dict:
     ap.add_argument("--bake-spp", type=int, default=8)
     ap.add_argument("--geometry-res", type=int, default=512)
     ap.add_argument(
+        "--texel-rays",
+        default="surfel",
+        choices=["surfel", "jittered"],
+        help="where a radiance texel's rays leave (probes.BakeConfig.texel_rays)",
+    )
+    ap.add_argument(
         "--filter",
         default=None,
         help="the glossy read's filter (EvalConfig.glossy_filter; default: the cell's)",
@@ -152,7 +158,8 @@ def main(argv=None) -> dict:
     cv.setup_scene_path()
     bench_args = cv.parse_args(
         ["--scenes", "sponza", "--grids", f"sponza:{args.grid}", "--res", f"sponza:{args.res}",
-         "--bake-spp", f"sponza:{args.bake_spp}", "--geometry-res", str(args.geometry_res)]
+         "--bake-spp", f"sponza:{args.bake_spp}", "--geometry-res", str(args.geometry_res),
+         "--texel-rays", args.texel_rays]
     )  # fmt: skip
     try:
         b = cv.Bench("sponza", bench_args, cv.FULL["sponza"]["eval"])
@@ -172,9 +179,12 @@ def main(argv=None) -> dict:
         sh.t, exact.t_exact, sh.status, rtol=b.config.agreement_rtol, atol=agreement_atol(b.scene)
     )
     S, w = prim.spp, prim.w_glossy
-    out = {"grid": args.grid, "seed": args.seed, "filter": b.config.glossy_filter} | tail_causes(
-        w, sh.glossy, crn.radiance, crn.diffuse_at_hit, sh.status, agree, S, args.top
-    )
+    out = {
+        "grid": args.grid,
+        "seed": args.seed,
+        "filter": b.config.glossy_filter,
+        "texel_rays": args.texel_rays,
+    } | tail_causes(w, sh.glossy, crn.radiance, crn.diffuse_at_hit, sh.status, agree, S, args.top)
     hi = None
     if args.ref_spp:
         cfg = dataclasses.replace(b.config, glossy_ref_spp=args.ref_spp)

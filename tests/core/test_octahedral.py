@@ -20,6 +20,7 @@ from probeplace._core import (
     sample_bilinear,
     sample_nearest,
     strip_border,
+    surfel_texels,
     texel_directions,
     texel_of_direction,
     texel_solid_angles,
@@ -168,3 +169,17 @@ def test_jittered_directions_stay_in_their_texel(getkey):
     ii, jj = np.meshgrid(np.arange(res), np.arange(res), indexing="ij")
     np.testing.assert_array_equal(np.asarray(rc[..., 0]), np.broadcast_to(ii[..., None], rc.shape[:3]))
     np.testing.assert_array_equal(np.asarray(rc[..., 1]), np.broadcast_to(jj[..., None], rc.shape[:3]))
+
+
+@pytest.mark.parametrize("res,geo", [(4, 4), (4, 32), (8, 512), (64, 512), (16, 8), (8, 2), (2, 1024)])
+def test_surfel_texel_holds_the_radiance_texels_centre(res, geo):
+    """Oracle: the geometry texel's uv interval contains the radiance texel's centre, and a centre on a
+    boundary between two texels (an even ratio) takes the upper one. The uv values are dyadic rationals,
+    exact in float64."""
+    idx = surfel_texels(res, geo)
+    centre = (np.arange(res) + 0.5) * (2.0 / res) - 1.0
+    lo, hi = idx * (2.0 / geo) - 1.0, (idx + 1) * (2.0 / geo) - 1.0
+    assert idx.shape == (res,) and idx.min() >= 0 and idx.max() < geo
+    assert np.all((lo <= centre) & (centre < hi))
+    on_boundary = (centre - lo) == 0
+    assert on_boundary.any() == (geo // res >= 2 and geo // res % 2 == 0)

@@ -60,9 +60,21 @@ def test_settings_round_trip_through_json(radiance):
         np.testing.assert_array_equal(np.asarray(a), np.asarray(b))
 
 
+def test_older_records_read_as_what_they_baked():
+    """A version-2 record has no ``texel_rays``: its texels were jittered (and version 1 baked every
+    lobe); the current default is surfel rays."""
+    d = _settings().to_dict()
+    old = {k: v for k, v in d.items() if k not in ("texel_rays", "first_hit_lobes")} | {"version": 2}
+    back = BakeSettings.from_dict(old)
+    assert (back.texel_rays, back.first_hit_lobes, back.version) == ("jittered", "all", 2)
+    assert BakeSettings.from_dict(d | {"texel_rays": "surfel"}).texel_rays == "surfel"
+
+
 def test_bad_settings_and_backface_shape_are_refused():
     with pytest.raises(ValueError, match="radiance"):
         _settings(radiance="magic")
+    with pytest.raises(ValueError, match="texel_rays"):
+        BakeSettings.from_dict(_settings().to_dict() | {"texel_rays": "random"})
     # jaxtyping refuses it first where it checks (tests); __check_init__ everywhere else
     with pytest.raises((TypeError, ValueError), match="backface"):
         _probes(backface_shape=(2, 4, 4))

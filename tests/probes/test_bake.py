@@ -17,6 +17,7 @@ from probeplace._core import (
     ProbeplaceError,
     ProbeSet,
     strip_border,
+    surfel_texels,
     texel_directions,
 )
 from probeplace.geometry import BruteForceCaster, EmbreeCaster
@@ -99,6 +100,44 @@ def test_bake_geometry_maps_match_closed_form(room, getkey, caster):
     assert not bool(lf.inside[0])
     assert lf.radiance.shape == (1, 18, 18, 3) and lf.irradiance.shape == (1, 6, 6, 3)
     assert lf.radiance.dtype == jnp.float32
+
+
+def _direction_radiance(origins, directions, key):
+    """A custom radiance function that stores each ray's direction, mapped to [0, 1]."""
+    return 0.5 * directions + 0.5, jnp.zeros_like(directions)
+
+
+@pytest.mark.parametrize("res,geo", [(8, 8), (8, 32)])
+def test_surfel_rays_leave_along_the_surfel_the_glossy_read_tests(room, getkey, res, geo):
+    """``texel_rays="surfel"``: every ray of a radiance texel leaves along the direction of the geometry
+    texel holding its centre (oracle: ``texel_directions`` at ``surfel_texels``, float64), and that is
+    the direction of the surfel the depth-aware read tests (``_glossy._surfel_maps``: its point over its
+    distance). A mean of n_sub² equal float32 values is exact, so the maps hold the direction to float32
+    rounding. ``"jittered"`` rays differ from it."""
+    from probeplace.probes._glossy import _surfel_maps
+
+    probes = ProbeSet(pos_world=jnp.asarray([[3.0, 2.0, 3.5]], jnp.float32), active=jnp.ones(1, bool))
+    common = dict(radiance_res=res, geometry_res=geo, irradiance_res=4, moments_res=4, n_sub=2)
+
+    def bake(rays: str):
+        config = BakeConfig(texel_rays=rays, progress=False, **common)
+        caster = EmbreeCaster(room)
+        return bake_probes(
+            room, probes, caster=caster, radiance_fn=_direction_radiance, key=getkey(), config=config
+        )
+
+    lf = bake("surfel")
+    assert lf.bake.texel_rays == "surfel" and lf.bake.to_dict()["texel_rays"] == "surfel"
+    stored = 2.0 * np.asarray(strip_border(lf.radiance))[0].astype(np.float64) - 1.0
+    idx = surfel_texels(res, geo)
+    expected = np.asarray(texel_directions(geo, jnp.float64))[idx[:, None], idx[None, :]]
+    np.testing.assert_allclose(stored, expected, atol=4e-7)
+    point, _ = _surfel_maps(lf, res)
+    point = np.asarray(strip_border(point))[0].astype(np.float64)
+    read_dir = point / np.linalg.norm(point, axis=-1, keepdims=True)
+    np.testing.assert_allclose(read_dir, expected, atol=1e-6)
+    jittered = 2.0 * np.asarray(strip_border(bake("jittered").radiance))[0] - 1.0
+    assert np.abs(jittered - expected).max() > 1e-3
 
 
 @pytest.mark.slow  # ~25 s; tests/probes/test_trace.py checks the tracer on separate geometry maps by default

@@ -7,7 +7,7 @@ upper bounds, so the truth is below the target but for a 5 % chance per figure; 
 scatters about the truth by its standard error over the texels, and three of them leave a false failure
 at ~0.1 %); the chosen count is the closed form of the pilot's rule, recomputed from the figures the
 result reports (``probes._bake_samples``); a jitter the paths cannot lower is reported, not chased.
-Cornell box, 8 probes, 16² radiance maps, 4² jittered rays per texel.
+Cornell box, 8 probes, 16² radiance maps, 4² jittered rays per texel (surfel rays: J is exactly 0).
 """
 
 from __future__ import annotations
@@ -38,6 +38,7 @@ def setup():
     config = BakeConfig(
         radiance_res=16,
         n_sub=4,
+        texel_rays="jittered",  # the pilot's jitter part J (surfel rays have none: tested apart)
         irradiance_res=4,
         moments_res=4,
         inside_test="none",  # the radiance maps do not depend on it
@@ -131,3 +132,13 @@ def test_fixed_counts_and_refusals(setup):
 def test_bad_targets_are_one_line_config_errors(kw, match):
     with pytest.raises(ConfigError, match=match):
         BakeConfig(**kw)
+
+
+def test_surfel_rays_have_no_jitter_part(setup):
+    """Along the surfel's direction the rays do not depend on the key: the pilot takes J as exactly 0
+    (not as a noisy difference of two path estimates) and its prediction is the path part alone."""
+    scene, _, probes, config, fn = setup
+    surfel = dataclasses.replace(config, texel_rays="surfel")
+    s = choose_bake_spp(scene, probes, radiance_fn=fn, key=jax.random.key(0), config=surfel, spp="auto")
+    assert s.jitter_variance == 0 and s.jitter_variance_se == 0 and s.jitter_relative_noise == 0
+    assert s.path_variance > 0 and s.spp == _closed_form(s, TARGET)

@@ -227,7 +227,7 @@ class ProbeSet(eqx.Module):
 
 
 #: Version of the :class:`BakeSettings` record (bumped when its fields or their meaning change).
-BAKE_SETTINGS_VERSION = 2  # 2: first_hit_lobes
+BAKE_SETTINGS_VERSION = 3  # 2: first_hit_lobes; 3: texel_rays
 
 
 class BakeSettings(eqx.Module):
@@ -244,7 +244,7 @@ class BakeSettings(eqx.Module):
             needs ``path_depth = D − 1`` (``probes.bake_depth_for``). −1: the radiance was not path
             traced (a custom ``radiance_fn``), so there is no depth to check.
         spp: paths per texel ray (−1 for a custom radiance function).
-        n_sub: jittered rays per texel and axis (``n_sub``² per texel).
+        n_sub: rays per texel and axis (``n_sub``² per texel).
         radiance_res: interior resolution of the radiance maps.
         specular: the path tracer's dielectric specular factor (``render.RenderConfig.specular``);
             NaN for a custom radiance function.
@@ -255,6 +255,9 @@ class BakeSettings(eqx.Module):
             diffuse lobe only: view-independent radiance, right for any viewer; the default since version
             2) or ``"all"`` (the whole BRDF: right only along the probe's own direction; version-1 files)
             (``render.RenderConfig.first_hit_lobes``; static).
+        texel_rays: where a radiance texel's rays left: ``"surfel"`` (along its surfel's direction, the
+            default since version 3) or ``"jittered"`` (stratified over the texel; version-1 and -2 files)
+            (``probes.BakeConfig.texel_rays``; static).
         backend: the path tracer's backend, ``"jax"`` or ``"mitsuba"`` (``render.RenderConfig.backend``;
             the same estimator, so provenance only; static).
         version: :data:`BAKE_SETTINGS_VERSION` of the record (static).
@@ -270,6 +273,7 @@ class BakeSettings(eqx.Module):
     radiance: str = eqx.field(static=True, default="path_traced")
     first_hit_lobes: str = eqx.field(static=True, default="all")
     backend: str = eqx.field(static=True, default="jax")
+    texel_rays: str = eqx.field(static=True, default="jittered")
     version: int = eqx.field(static=True, default=BAKE_SETTINGS_VERSION)
 
     def __check_init__(self):
@@ -279,6 +283,8 @@ class BakeSettings(eqx.Module):
             raise ValueError(f"first_hit_lobes must be 'all' or 'diffuse', got {self.first_hit_lobes!r}")
         if self.backend not in ("jax", "mitsuba"):
             raise ValueError(f"backend must be 'jax' or 'mitsuba', got {self.backend!r}")
+        if self.texel_rays not in ("surfel", "jittered"):
+            raise ValueError(f"texel_rays must be 'surfel' or 'jittered', got {self.texel_rays!r}")
 
     def to_dict(self) -> dict:
         """Plain JSON-ready values (the form stored in the baked file and in run metrics)."""
@@ -288,6 +294,7 @@ class BakeSettings(eqx.Module):
             "radiance": self.radiance,
             "first_hit_lobes": self.first_hit_lobes,
             "backend": self.backend,
+            "texel_rays": self.texel_rays,
             "path_depth": int(self.path_depth),
             "spp": int(self.spp),
             "n_sub": int(self.n_sub),
@@ -316,6 +323,7 @@ class BakeSettings(eqx.Module):
             radiance=str(d["radiance"]),
             first_hit_lobes=str(d.get("first_hit_lobes", "all")),  # version 1 baked every lobe
             backend=str(d.get("backend", "jax")),  # files from before the Mitsuba backend
+            texel_rays=str(d.get("texel_rays", "jittered")),  # versions 1-2 jittered every texel's rays
             version=int(d["version"]),
         )
 

@@ -4,8 +4,16 @@ Per probe and interior texel of the radiance map (octahedral, Cigolle 2014; ``_c
 
 * the **geometry** maps — radial distance and shading normal — come from the ray through the texel
   *centre*, so each texel is one surfel (McGuire §4: "each octahedral texel describes a planar patch");
-* the **radiance** maps average ``n_sub``² rays with stratified sub-texel jitter, each path traced by
-  the reference renderer (issue 3: "radiance from path tracing along each texel's direction"). What the
+* the **radiance** maps average ``n_sub``² rays per texel, each path traced by the reference renderer
+  (issue 3: "radiance from path tracing along each texel's direction"). By default
+  (``BakeConfig.texel_rays="surfel"``) every ray of a texel leaves along its *surfel's* direction — the
+  geometry texel holding the radiance texel's centre (``_core.surfel_texels``) — so a texel stores the
+  light of the very surface the depth-aware glossy read tests (``_glossy``). ``"jittered"`` spreads them
+  over the texel with stratified sub-texel jitter (issue 3's box filter, the default until issue 33): then
+  a texel at a shadow edge holds sun or shade by its jitter while its surfel is at the centre. On Crytek
+  Sponza's 16×8×8 grid (64² radiance, 512² geometry, 8 paths, one ray a texel) that mismatch was 84 % of
+  the worst 1 % of the glossy error; along the surfel's ray the glossy MSE fell 42 % (issue 33,
+  experiments/README.md §2 "What the tail is made of, ray by ray"). What the
   renderer calls ``direct + diffuse_indirect + glossy_indirect`` for a camera at the probe is the light
   *reflected* toward the probe (stored in ``radiance``); its ``emission`` (emitters and sky seen
   directly) is stored apart (DESIGN.md "indirect means reflected").
@@ -73,6 +81,7 @@ from .._core import (
     next_pow2,
     pack_normal,
     scene_box,
+    surfel_texels,
     texel_directions,
 )
 from .._core.runtime import check_settings, progress_bar, setting
@@ -165,7 +174,7 @@ def path_traced_radiance(
     """The reference path tracer as a :data:`RadianceFn`: ``render.trace_rays`` split into reflected
     (direct + diffuse indirect + glossy indirect) and emitted (emission, sky) radiance.
 
-    ``spp`` paths per ray; with ``n_sub``² jittered rays per texel a texel averages ``spp·n_sub²`` paths.
+    ``spp`` paths per ray; with ``n_sub``² rays per texel a texel averages ``spp·n_sub²`` paths.
     Each call uses a fresh random stream from its key, so batches are independent.
 
     Args:
@@ -219,6 +228,8 @@ def path_traced_radiance(
 
 
 INSIDE_TESTS = ("reach", "backface", "none")
+#: Where a radiance texel's rays leave (:class:`BakeConfig` ``texel_rays``).
+TEXEL_RAYS = ("surfel", "jittered")
 #: What a texel's surface reflects toward the probe into ``radiance`` (:func:`path_traced_radiance`).
 FIRST_HIT_LOBES = ("diffuse", "all")
 
@@ -238,7 +249,12 @@ class BakeConfig:
         irradiance_res: interior resolution of the irradiance map (McGuire §3: low frequency, 8 is
             DDGI's choice).
         moments_res: interior resolution of the distance-moment map (DDGI uses 16).
-        n_sub: ``n_sub``² jittered rays per radiance texel.
+        n_sub: ``n_sub``² rays per radiance texel (each traces ``spp`` paths).
+        texel_rays: where a radiance texel's rays leave: ``"surfel"`` (default) all along the direction
+            of the texel's surfel (``_core.surfel_texels``), so the texel holds the light of the surface
+            its surfel describes and ``n_sub``² only multiplies the paths; ``"jittered"``: stratified,
+            jittered over the texel (the texel's area average, issue 3), which a shadow edge inside the
+            texel splits between surfaces the depth-aware read cannot tell apart (module docstring).
         moment_power: exponent p of the cosine-power lobe for the moments (McGuire §5.2 gives no value;
             DDGI's reference implementation filters distance with a sharp lobe, we default to 50).
         inside_test: how ``inside`` is decided: ``"reach"`` (default; winding-independent: the probe
@@ -271,6 +287,7 @@ class BakeConfig:
     irradiance_res: int = setting(8, lo=1)
     moments_res: int = setting(16, lo=1)
     n_sub: int = setting(2, lo=1)
+    texel_rays: str = setting("surfel", choices=TEXEL_RAYS)
     moment_power: float = setting(50.0, lo=0.0, lo_open=True)
     inside_test: str = setting("reach", choices=INSIDE_TESTS)
     inside_neighbours: int = setting(16, lo=1)
@@ -448,7 +465,7 @@ def _bake_batch(
     res: int,
     geo_res: int,
     centre_dirs: np.ndarray,
-    n_sub: int,
+    config: BakeConfig,
     far: float,
     key: jax.Array,
 ):
@@ -465,25 +482,41 @@ def _bake_batch(
         _texel_surfels, origins, dirs, dirs, jnp.float32(far), coherent=_tile(geo_res) == _TILE
     )
     k_dir, k_rad = jax.random.split(key)
-    radiance = texel_radiance(jnp.asarray(pos), radiance_fn, res, n_sub, k_dir, k_rad)
+    radiance = texel_radiance(jnp.asarray(pos), radiance_fn, res, geo_res, config, k_dir, k_rad)
     return geometry, radiance
+
+
+def texel_ray_directions(
+    b: int, res: int, geo_res: int, config: BakeConfig, k_dir: jax.Array
+) -> Float[Array, "rays 3"]:
+    """The radiance rays of ``b`` probes, (b·res²·n_sub², 3) in probe, row, column, ray order, placed by
+    ``config.texel_rays`` (:class:`BakeConfig`): along each texel's surfel direction (``geo_res``: the
+    geometry maps' resolution), or jittered with ``k_dir``."""
+    sub = config.n_sub * config.n_sub
+    if config.texel_rays == "surfel":
+        idx = surfel_texels(res, geo_res)
+        dirs = texel_directions(geo_res)[idx[:, None], idx[None, :]]
+        return jnp.broadcast_to(dirs[None, :, :, None], (b, res, res, sub, 3)).reshape(-1, 3)
+    jitter = lambda k: jittered_texel_directions(res, config.n_sub, key=k)
+    return jax.vmap(jitter)(jax.random.split(k_dir, b)).reshape(-1, 3)
 
 
 def texel_radiance(
     pos: Float[Array, "b 3"],
     radiance_fn: RadianceFn,
     res: int,
-    n_sub: int,
+    geo_res: int,
+    config: BakeConfig,
     k_dir: jax.Array,
     k_rad: jax.Array,
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """The (b, res, res, 3) radiance, emission and every-lobe maps of the probes at ``pos``: the mean of
-    ``n_sub``² rays per texel, jittered with ``k_dir``, path traced with ``k_rad``. Two keys, so that the
-    bake's pilot (``_bake_samples``) can hold the jitter and draw new paths."""
+    ``n_sub``² rays per texel (:func:`texel_ray_directions`; ``k_dir`` draws the jitter), path traced with
+    ``k_rad``. Two keys, so that the bake's pilot (``_bake_samples``) can hold the jitter and draw new
+    paths."""
     b = pos.shape[0]
-    sub = n_sub * n_sub
-    dirs = jax.vmap(lambda k: jittered_texel_directions(res, n_sub, key=k))(jax.random.split(k_dir, b))
-    dirs = dirs.reshape(-1, 3)
+    sub = config.n_sub * config.n_sub
+    dirs = texel_ray_directions(b, res, geo_res, config, k_dir)
     sub_origins = jnp.repeat(pos, res * res * sub, axis=0)
     out = radiance_fn(sub_origins, dirs, k_rad)
     per_texel = lambda x: np.asarray(x).reshape(b, res, res, sub, 3).mean(axis=3)
@@ -592,7 +625,7 @@ def bake_probes(
     for i, start in enumerate(range(0, n, bsz)):
         rows = slice(start, min(start + bsz, n))
         geometry, radiance = _bake_batch(
-            pos[rows], caster, radiance_fn, res, geo_res, centre_dirs, config.n_sub, far, keys[i]
+            pos[rows], caster, radiance_fn, res, geo_res, centre_dirs, config, far, keys[i]
         )
         for out, g in zip((distance, normal, backface), geometry, strict=True):
             out[rows] = _from_tiles(np.asarray(g), rows.stop - start, geo_res)
@@ -625,7 +658,7 @@ def bake_probes(
         moments=add_border(mom),
         far=jnp.float32(far),
         backface=jax.device_put(backface_b),
-        bake=_settings(scene, radiance_fn, res, config.n_sub, key),
+        bake=_settings(scene, radiance_fn, res, config, key),
     )
 
 
@@ -692,11 +725,16 @@ def _inside(scene, pos, res: int, distance, far: float, backface, caster, config
     return share > config.inside_backface_share
 
 
-def _settings(scene: Scene, radiance_fn, res: int, n_sub: int, key) -> BakeSettings:
+def _settings(scene: Scene, radiance_fn, res: int, config: BakeConfig, key) -> BakeSettings:
     i32 = lambda v: jnp.asarray(v, jnp.int32)
     k = jnp.asarray(key)
     words = jax.random.key_data(k) if jnp.issubdtype(k.dtype, jax.dtypes.prng_key) else k
-    common = dict(n_sub=i32(n_sub), radiance_res=i32(res), key=jnp.asarray(words, jnp.uint32).reshape(-1))
+    common = dict(
+        n_sub=i32(config.n_sub),
+        radiance_res=i32(res),
+        key=jnp.asarray(words, jnp.uint32).reshape(-1),
+        texel_rays=config.texel_rays,
+    )
     if isinstance(radiance_fn, PathTracedRadiance):
         return BakeSettings(
             path_depth=i32(radiance_fn.max_depth),

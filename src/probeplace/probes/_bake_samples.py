@@ -1,7 +1,8 @@
 """The bake's paths per texel ray chosen from a noise target (issue 33, "Samples from a noise target").
 
 **What is held to the target.** The radiance maps' seed-to-seed noise: a texel's value changes with the
-bake's key through two draws, the sub-texel jitter of its ``n_sub``² rays and the paths each ray traces.
+bake's key through two draws, the sub-texel jitter of its ``n_sub``² rays (``BakeConfig.texel_rays=
+"jittered"``; along the surfel's direction, the default, there is none) and the paths each ray traces.
 Its relative noise is r = √(V / M), with V the texel variance between seeds (mean over the texels and RGB
 of the active probes) and M the mean squared radiance of the noise-free maps. A glossy ray reads one texel
 (or a filter of a few), so r bounds the relative noise a glossy read hands to the probe image; it is the
@@ -14,7 +15,8 @@ jitter and paths. The texel variance is V(s) = J + P / s: the jitter part J does
 (every path of a ray follows the ray), the path part P / s does. Then
 
 * mean((A − B)²) / 2 estimates P / p (the jitter cancels: same rays),
-* mean((A − C)²) / 2 estimates J + P / p (both draws independent), so J is the difference (≥ 0),
+* mean((A − C)²) / 2 estimates J + P / p (both draws independent), so J is the difference (≥ 0); with
+  ``texel_rays="surfel"`` the rays do not depend on the key and J is taken as exactly 0,
 * mean(A · C) estimates M without bias (A and C are independent, so E[A·C] = E[A]·E[C] per texel; the
   mean of A² would add the noise V to it).
 
@@ -62,7 +64,7 @@ from ._bake import (
     PathTracedRadiance,
     RadianceFn,
     batch_ray_bytes,
-    default_radiance_res,
+    map_resolutions,
     texel_radiance,
 )
 
@@ -131,7 +133,9 @@ def predicted_relative_noise(
     return math.sqrt(v / mean_sq)
 
 
-def _pilot_maps(pos: np.ndarray, radiance_fn, res: int, config: BakeConfig, key) -> tuple[np.ndarray, ...]:
+def _pilot_maps(
+    pos: np.ndarray, radiance_fn, res: int, geo_res: int, config: BakeConfig, key
+) -> tuple[np.ndarray, ...]:
     """The radiance maps A, B (same jitter, other paths) and C (other jitter and paths) of the probes at
     ``pos``, batch by batch as the bake runs them."""
     bsz = config.probes_per_batch
@@ -140,9 +144,9 @@ def _pilot_maps(pos: np.ndarray, radiance_fn, res: int, config: BakeConfig, key)
         k = jax.random.split(jax.random.fold_in(key, i), 5)
         p = jnp.asarray(pos[start : start + bsz])
         maps = (
-            texel_radiance(p, radiance_fn, res, config.n_sub, k[0], k[1])[0],
-            texel_radiance(p, radiance_fn, res, config.n_sub, k[0], k[2])[0],
-            texel_radiance(p, radiance_fn, res, config.n_sub, k[3], k[4])[0],
+            texel_radiance(p, radiance_fn, res, geo_res, config, k[0], k[1])[0],
+            texel_radiance(p, radiance_fn, res, geo_res, config, k[0], k[2])[0],
+            texel_radiance(p, radiance_fn, res, geo_res, config, k[3], k[4])[0],
         )
         parts.append([np.asarray(m, np.float64) for m in maps])
     return tuple(np.concatenate(x) for x in zip(*parts, strict=True))
@@ -187,7 +191,7 @@ def choose_bake_spp(
     pos = np.asarray(probes.pos_world, np.float32)[np.asarray(probes.active)]
     if len(pos) == 0:
         raise ConfigError("bake spp 'auto': the probe set has no active probe to measure the noise on")
-    res = config.radiance_res or default_radiance_res(scene, quality=config.quality)
+    res, geo_res = map_resolutions(scene, config)
     p = config.pilot_spp
     batch = min(config.probes_per_batch, len(pos))
     check_memory(
@@ -197,11 +201,18 @@ def choose_bake_spp(
     )
     t0 = time.perf_counter()
     a, b, c = _pilot_maps(
-        pos, dataclasses.replace(radiance_fn, spp=p), res, config, jax.random.fold_in(key, _PILOT_STREAM)
+        pos,
+        dataclasses.replace(radiance_fn, spp=p),
+        res,
+        geo_res,
+        config,
+        jax.random.fold_in(key, _PILOT_STREAM),
     )
     # per texel (mean over RGB): the paths' and the jitter's squared differences (module docstring)
     d_path = np.mean((a - b) ** 2 / 2, axis=-1).reshape(-1)
     d_jitter = np.mean((a - c) ** 2 / 2, axis=-1).reshape(-1) - d_path
+    if config.texel_rays == "surfel":  # A and C trace the same rays: J is 0, not an estimate of it
+        d_jitter = np.zeros_like(d_path)
     (path_var, path_se), (jitter_var, jitter_se) = mean_and_se(d_path), mean_and_se(d_jitter)
     path_up, jitter_up = path_var + PILOT_Z * path_se, max(jitter_var + PILOT_Z * jitter_se, 0.0)
     mean_sq = float(np.mean(a * c))

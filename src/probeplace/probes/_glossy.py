@@ -53,6 +53,7 @@ import math
 import equinox as eqx
 import jax
 import jax.numpy as jnp
+import numpy as np
 from jaxtyping import Array, Bool, Float, Int
 
 from .._core import (
@@ -63,6 +64,7 @@ from .._core import (
     oct_encode,
     safe_normalize,
     strip_border,
+    surfel_texels,
     texel_directions,
     texel_of_direction,
     texel_solid_angles,
@@ -149,15 +151,15 @@ def _nearest(maps: Array, p: Int[Array, ""], direction: Float[Array, "3"]) -> Ar
 
 @eqx.filter_jit  # one program, not one per operation (issue 32); ``res`` is static
 def _surfel_maps(lf: LightFieldProbes, res: int) -> tuple[Array, Array]:
-    """Bordered (p, res+2, res+2, 3) maps of each radiance texel's surfel: the point d·ω_c relative to the
+    """Bordered (p, res+2, res+2, 3) maps of each radiance texel's surfel: the point d·ω relative to the
     probe and the normal, from the geometry texel (of the bake's bordered distance and normal maps)
-    containing the radiance texel's centre direction (the geometry maps may be finer). Only those texels
-    are unpacked (``LightFieldProbes.normal_at``), not the whole normal maps."""
-    gres = lf.geometry_res
-    dirs = texel_directions(res, lf.far.dtype).reshape(-1, 3)
-    rc = jax.vmap(lambda w: texel_of_direction(gres, w))(dirs)
-    omega = texel_directions(gres, lf.far.dtype)[rc[:, 0], rc[:, 1]]
-    at = (slice(None), rc[:, 0] + 1, rc[:, 1] + 1)
+    holding the radiance texel's centre (``_core.surfel_texels``; the geometry maps may be finer) — the
+    texel whose direction ω the bake traces the radiance along (``BakeConfig.texel_rays="surfel"``). Only
+    those texels are unpacked (``LightFieldProbes.normal_at``), not the whole normal maps."""
+    idx = surfel_texels(res, lf.geometry_res)
+    rows, cols = (a.reshape(-1) for a in np.meshgrid(idx, idx, indexing="ij"))
+    omega = texel_directions(lf.geometry_res, lf.far.dtype)[rows, cols]
+    at = (slice(None), rows + 1, cols + 1)
     point = (lf.distance[at][..., None] * omega[None]).reshape(-1, res, res, 3)
     normal = lf.normal_at(*at).reshape(-1, res, res, 3)
     return add_border(point), add_border(normal)

@@ -187,6 +187,20 @@ def texel_of_direction(res: int, direction: Float[Array, "3"]) -> Int[Array, "2"
     return idx[::-1]
 
 
+def surfel_texels(res: int, geometry_res: int) -> np.ndarray:
+    """(res,) int: per axis (rows and columns alike), the texel of a ``geometry_res``² map whose interval
+    holds the centre of each texel of a ``res``² map — so texel (r, c) of the finer or coarser map is
+    (idx[r], idx[c]): the geometry texel that gives a radiance texel its
+    surfel (``probes``: the depth-aware read tests it, the bake traces the texel's radiance along it).
+
+    Integer arithmetic, not ``texel_of_direction`` of the centre direction: when ``geometry_res`` is an
+    even multiple of ``res`` the centre lies exactly on a boundary between two geometry texels, where a
+    float round trip through the octahedral map picks either side by the last bit (and by the CPU's
+    instruction set). Centre i sits at (i + ½)·G / R in geometry texels; its texel is
+    ⌊(2i + 1)·G / 2R⌋, the upper one on a boundary."""
+    return (2 * np.arange(res) + 1) * geometry_res // (2 * res)
+
+
 @partial(jax.jit, static_argnames=("res", "n_sub", "dtype"))
 def jittered_texel_directions(
     res: int, n_sub: int, *, key: jax.Array, dtype=jnp.float32
