@@ -118,7 +118,12 @@ def _worst(w, l_probe, l_ref, l_diffuse, l_hi, status, agree, spp: int, k: int) 
 
 def main(argv=None) -> dict:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    ap.add_argument("--grid", default="8x4x4", help="uniform grid NxMxK (a convergence cell's)")
+    ap.add_argument(
+        "--grid",
+        default="8x4x4",
+        help="uniform grid NxMxK (a convergence cell's), or auto: the cell of the automatic skeleton set "
+        "(its placement cached by benchmarks/convergence.py, else placed first: minutes)",
+    )
     ap.add_argument("--seed", type=int, default=0, help="bake, reference and evaluation seed")
     ap.add_argument("--res", type=int, default=64, help="radiance map resolution")
     ap.add_argument("--bake-spp", type=int, default=8)
@@ -140,8 +145,8 @@ def main(argv=None) -> dict:
     args = ap.parse_args(argv)
     if not 0 < args.top <= 100 or args.ref_spp < 0 or args.show < 0:
         ap.error("--top must lie in (0, 100], --ref-spp and --show must not be negative")
-    if not re.fullmatch(r"[1-9]\d*x[1-9]\d*x[1-9]\d*", args.grid):
-        ap.error(f"--grid {args.grid!r}: want NxMxK, e.g. 8x4x4")
+    if args.grid != "auto" and not re.fullmatch(r"[1-9]\d*x[1-9]\d*x[1-9]\d*", args.grid):
+        ap.error(f"--grid {args.grid!r}: want NxMxK, e.g. 8x4x4, or auto")
 
     import convergence as cv
     from probeplace._core import ConfigError
@@ -156,8 +161,9 @@ def main(argv=None) -> dict:
     from probeplace.probes import glossy_maps
 
     cv.setup_scene_path()
+    grid = "8x4x4" if args.grid == "auto" else args.grid  # the benchmark's arguments want a grid
     bench_args = cv.parse_args(
-        ["--scenes", "sponza", "--grids", f"sponza:{args.grid}", "--res", f"sponza:{args.res}",
+        ["--scenes", "sponza", "--grids", f"sponza:{grid}", "--res", f"sponza:{args.res}",
          "--bake-spp", f"sponza:{args.bake_spp}", "--geometry-res", str(args.geometry_res),
          "--texel-rays", args.texel_rays]
     )  # fmt: skip
@@ -170,7 +176,11 @@ def main(argv=None) -> dict:
             b.config = dataclasses.replace(b.config, glossy_filter=args.filter)
         except ConfigError as e:
             ap.error(str(e))
-    lf, _ = b.bake(cv.grid_positions(b.scene, cv.dims_of(args.grid)), args.res, args.seed)
+    if args.grid == "auto":
+        pos = b.auto_positions(args.seed)[0]  # placed with the cell's seed, as the benchmark's auto cell
+    else:
+        pos = cv.grid_positions(b.scene, cv.dims_of(args.grid))
+    lf, _ = b.bake(pos, args.res, args.seed)
     _, prim, crn, _ = b.steps(args.seed)
     maps = glossy_maps(lf, b.config.glossy_filter, include_emission=False)
     sh = shade_probes(b.scene, lf, prim, b.config, maps=maps)
