@@ -107,13 +107,16 @@ def _direction_radiance(origins, directions, key):
     return 0.5 * directions + 0.5, jnp.zeros_like(directions)
 
 
+@pytest.mark.isa  # a float32 map against a float64 oracle, with a tolerance rounding could break
 @pytest.mark.parametrize("res,geo", [(8, 8), (8, 32)])
 def test_surfel_rays_leave_along_the_surfel_the_glossy_read_tests(room, getkey, res, geo):
     """``texel_rays="surfel"``: every ray of a radiance texel leaves along the direction of the geometry
     texel holding its centre (oracle: ``texel_directions`` at ``surfel_texels``, float64), and that is
     the direction of the surfel the depth-aware read tests (``_glossy._surfel_maps``: its point over its
-    distance). A mean of n_sub² equal float32 values is exact, so the maps hold the direction to float32
-    rounding. ``"jittered"`` rays differ from it."""
+    distance). A mean of n_sub² equal float32 values is exact, so the maps hold the float32 direction:
+    within a few float32 ulps of the float64 oracle (``oct_decode``'s normalisation, under any instruction
+    set; 2e-6 is 16 ulps at 1), far below the 0.05 rad between neighbouring geometry texels.
+    ``"jittered"`` rays differ from it."""
     from probeplace.probes._glossy import _surfel_maps
 
     probes = ProbeSet(pos_world=jnp.asarray([[3.0, 2.0, 3.5]], jnp.float32), active=jnp.ones(1, bool))
@@ -131,11 +134,11 @@ def test_surfel_rays_leave_along_the_surfel_the_glossy_read_tests(room, getkey, 
     stored = 2.0 * np.asarray(strip_border(lf.radiance))[0].astype(np.float64) - 1.0
     idx = surfel_texels(res, geo)
     expected = np.asarray(texel_directions(geo, jnp.float64))[idx[:, None], idx[None, :]]
-    np.testing.assert_allclose(stored, expected, atol=4e-7)
+    np.testing.assert_allclose(stored, expected, atol=2e-6)
     point, _ = _surfel_maps(lf, res)
     point = np.asarray(strip_border(point))[0].astype(np.float64)
     read_dir = point / np.linalg.norm(point, axis=-1, keepdims=True)
-    np.testing.assert_allclose(read_dir, expected, atol=1e-6)
+    np.testing.assert_allclose(read_dir, expected, atol=2e-6)
     jittered = 2.0 * np.asarray(strip_border(bake("jittered").radiance))[0] - 1.0
     assert np.abs(jittered - expected).max() > 1e-3
 

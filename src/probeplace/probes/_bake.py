@@ -11,9 +11,10 @@ Per probe and interior texel of the radiance map (octahedral, Cigolle 2014; ``_c
   light of the very surface the depth-aware glossy read tests (``_glossy``). ``"jittered"`` spreads them
   over the texel with stratified sub-texel jitter (issue 3's box filter, the default until issue 33): then
   a texel at a shadow edge holds sun or shade by its jitter while its surfel is at the centre. On Crytek
-  Sponza's 16×8×8 grid (64² radiance, 512² geometry, 8 paths, one ray a texel) that mismatch was 84 % of
-  the worst 1 % of the glossy error; along the surfel's ray the glossy MSE fell 42 % (issue 33,
-  experiments/README.md §2 "What the tail is made of, ray by ray"). What the
+  Sponza's 16×8×8 grid (64² radiance, 512² geometry, 8 paths, one ray a texel) reads too bright at the
+  right distance were 84 % of the worst 1 % of the glossy error; along the surfel's ray the glossy MSE
+  fell 37 %, and 7–25 % on each of five seeds of the 8×4×4 grid (issue 33, experiments/README.md §2
+  "Radiance along the surfel's ray"). What the
   renderer calls ``direct + diffuse_indirect + glossy_indirect`` for a camera at the probe is the light
   *reflected* toward the probe (stored in ``radiance``); its ``emission`` (emitters and sky seen
   directly) is stored apart (DESIGN.md "indirect means reflected").

@@ -188,10 +188,10 @@ def texel_of_direction(res: int, direction: Float[Array, "3"]) -> Int[Array, "2"
 
 
 def surfel_texels(res: int, geometry_res: int) -> np.ndarray:
-    """(res,) int: per axis (rows and columns alike), the texel of a ``geometry_res``² map whose interval
-    holds the centre of each texel of a ``res``² map — so texel (r, c) of the finer or coarser map is
-    (idx[r], idx[c]): the geometry texel that gives a radiance texel its
-    surfel (``probes``: the depth-aware read tests it, the bake traces the texel's radiance along it).
+    """(res,) int, per axis (rows and columns alike): the texel of a ``geometry_res``² map whose interval
+    holds the centre of each texel of a ``res``² map, so radiance texel (r, c) takes its surfel from
+    geometry texel (idx[r], idx[c]) (``probes``: the depth-aware read tests that surfel, the bake traces
+    the texel's radiance along its direction).
 
     Integer arithmetic, not ``texel_of_direction`` of the centre direction: when ``geometry_res`` is an
     even multiple of ``res`` the centre lies exactly on a boundary between two geometry texels, where a
