@@ -140,20 +140,25 @@ def _leaves_equal(a, b):
         np.testing.assert_array_equal(np.asarray(x), np.asarray(y))
 
 
-def test_bake_is_bit_identical_for_the_same_key(cornell):
-    """Jittered texel directions depend on the key: same key → the same maps, bit for bit; another key →
-    different radiance maps (so the comparison is not vacuous). Same layout as the ``cornell_baked``
-    fixture, so the caster's compile is shared."""
+@pytest.mark.parametrize("texel_rays", ["surfel", "jittered"])
+def test_bake_is_bit_identical_for_the_same_key(cornell, texel_rays):
+    """The key draws the radiance function's samples (paths) and, for ``"jittered"`` texel rays, the
+    texel directions: same key → the same maps, bit for bit; another key → different radiance maps (so the
+    comparison is not vacuous). Same layout as the ``cornell_baked`` fixture, so the caster's compile is
+    shared."""
     from .catalogue import bake
 
-    def radiance(o, d, k):  # direction-dependent, so the jitter shows in the maps
+    def radiance(o, d, k):  # direction-dependent (the jitter shows) and drawing from its key (as paths do)
         n = o.shape[0]
-        return (d * 0.5 + 0.5).astype(o.dtype), jax.numpy.zeros((n, 3), o.dtype)
+        u = jax.random.uniform(k, (n, 1), o.dtype)
+        return (d * 0.5 + 0.5 + 0.01 * u).astype(o.dtype), jax.numpy.zeros((n, 3), o.dtype)
 
     from .conftest import cornell_probes
 
     pos = cornell_probes(cornell)[:2]
-    run = lambda k: bake(cornell, pos, radiance_res=16, radiance_fn=radiance, key=jax.random.key(k))
+    run = lambda k: bake(
+        cornell, pos, radiance_res=16, radiance_fn=radiance, key=jax.random.key(k), texel_rays=texel_rays
+    )
     a, b, c = run(5), run(5), run(6)
     _leaves_equal(a, b)
     assert not np.array_equal(np.asarray(a.radiance), np.asarray(c.radiance))

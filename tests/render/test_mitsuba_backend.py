@@ -19,7 +19,7 @@ import numpy as np
 import pytest
 
 from probeplace._core import ConfigError, texel_directions
-from probeplace.probes import path_traced_radiance
+from probeplace.probes import BakeConfig, path_traced_radiance
 from probeplace.render import COMPONENTS, RenderConfig, render, trace_rays
 from probeplace.scene import build_scene, make_camera, make_materials, make_sun
 
@@ -248,7 +248,7 @@ def test_bake_records_backend(cornell):
     from probeplace.probes._bake import _settings
 
     fn = path_traced_radiance(cornell, spp=2, max_depth=3, backend="mitsuba")
-    rec = _settings(cornell, fn, 8, 1, jax.random.key(0))
+    rec = _settings(cornell, fn, 8, BakeConfig(n_sub=1), jax.random.key(0))
     assert rec.backend == "mitsuba"
     assert type(rec).from_dict(rec.to_dict()).backend == "mitsuba"
     old = {k: v for k, v in rec.to_dict().items() if k != "backend"}  # a file from before the field
@@ -294,7 +294,7 @@ def test_auto_backend_picks_mitsuba_on_a_cpu_and_jax_without_it(cornell, monkeyp
     # a caster is a JAX-only speed-up: with "auto" it is dropped when Mitsuba is picked, not refused
     fn = path_traced_radiance(cornell, spp=2, max_depth=3, backend="auto", caster=default_caster(cornell))
     assert fn.backend == expected and (fn.caster is None) == (expected == "mitsuba")
-    assert _settings(cornell, fn, 8, 1, jax.random.key(0)).backend == expected
+    assert _settings(cornell, fn, 8, BakeConfig(n_sub=1), jax.random.key(0)).backend == expected
     for name in BACKENDS:  # a named backend is never replaced
         assert resolve_backend(name) == name
     with pytest.raises(ConfigError, match=r"EvalConfig.backend must be one of .*'auto'.*got 'fast'"):
