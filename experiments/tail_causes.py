@@ -132,7 +132,8 @@ def main(argv=None) -> dict:
         "--texel-rays",
         default="surfel",
         choices=["surfel", "jittered"],
-        help="where a radiance texel's rays leave (probes.BakeConfig.texel_rays)",
+        help="where a radiance texel's rays leave (probes.BakeConfig.texel_rays; default as "
+        "benchmarks/convergence.py's)",
     )
     ap.add_argument(
         "--filter",

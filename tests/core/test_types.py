@@ -62,7 +62,7 @@ def test_settings_round_trip_through_json(radiance):
 
 def test_older_records_read_as_what_they_baked():
     """A version-2 record has no ``texel_rays``: its texels were jittered (and version 1 baked every
-    lobe); the current default is surfel rays."""
+    lobe)."""
     d = _settings().to_dict()
     old = {k: v for k, v in d.items() if k not in ("texel_rays", "first_hit_lobes")} | {"version": 2}
     back = BakeSettings.from_dict(old)

@@ -255,8 +255,8 @@ class BakeSettings(eqx.Module):
             diffuse lobe only: view-independent radiance, right for any viewer; the default since version
             2) or ``"all"`` (the whole BRDF: right only along the probe's own direction; version-1 files)
             (``render.RenderConfig.first_hit_lobes``; static).
-        texel_rays: where a radiance texel's rays left: ``"surfel"`` (along its surfel's direction, the
-            default since version 3) or ``"jittered"`` (stratified over the texel; version-1 and -2 files)
+        texel_rays: where a radiance texel's rays left: ``"jittered"`` (stratified over the texel; every
+            version-1 and -2 file) or ``"surfel"`` (along its surfel's direction; recorded since version 3)
             (``probes.BakeConfig.texel_rays``; static).
         backend: the path tracer's backend, ``"jax"`` or ``"mitsuba"`` (``render.RenderConfig.backend``;
             the same estimator, so provenance only; static).

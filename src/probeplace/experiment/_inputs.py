@@ -49,9 +49,10 @@ from urllib.parse import unquote
 #: 6 (2026-12-05): the geometry bake casts its texel rays in Embree's 16-ray packets where the compiled
 #: loop exists (``geometry/_embree_packets.py``): distances move by a few ulps, a few texels' hits on
 #: edges and ties (issue 33).
-#: 7 (2026-12-06): a radiance texel's rays leave along its surfel's direction (``BakeConfig.texel_rays``
-#: "surfel"), not jittered over the texel; the depth-aware read takes each texel's surfel from the geometry
-#: texel holding its centre by integer arithmetic (``_core.surfel_texels``) (issue 33).
+#: 7 (2026-12-06): the depth-aware read takes each radiance texel's surfel from the geometry texel holding
+#: its centre by integer arithmetic (``_core.surfel_texels``; a float round trip had picked either side of
+#: a texel boundary), and a bake may send a texel's rays along its surfel (``BakeConfig.texel_rays``,
+#: default still "jittered") (issue 33).
 RESULTS_VERSION = 7
 
 #: Input keys recorded but not compared (flattened, as the refusal names them).

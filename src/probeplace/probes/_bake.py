@@ -6,15 +6,18 @@ Per probe and interior texel of the radiance map (octahedral, Cigolle 2014; ``_c
   *centre*, so each texel is one surfel (McGuire §4: "each octahedral texel describes a planar patch");
 * the **radiance** maps average ``n_sub``² rays per texel, each path traced by the reference renderer
   (issue 3: "radiance from path tracing along each texel's direction"). By default
-  (``BakeConfig.texel_rays="surfel"``) every ray of a texel leaves along its *surfel's* direction — the
-  geometry texel holding the radiance texel's centre (``_core.surfel_texels``) — so a texel stores the
-  light of the very surface the depth-aware glossy read tests (``_glossy``). ``"jittered"`` spreads them
-  over the texel with stratified sub-texel jitter (issue 3's box filter, the default until issue 33): then
-  a texel at a shadow edge holds sun or shade by its jitter while its surfel is at the centre. On Crytek
-  Sponza's 16×8×8 grid (64² radiance, 512² geometry, 8 paths, one ray a texel) reads too bright at the
-  right distance were 84 % of the worst 1 % of the glossy error; along the surfel's ray the glossy MSE
-  fell 37 %, and 7–25 % on each of five seeds of the 8×4×4 grid (issue 33, experiments/README.md §2
-  "Radiance along the surfel's ray"). What the
+  (``BakeConfig.texel_rays="jittered"``) the rays are spread over the texel with stratified sub-texel
+  jitter (issue 3's box filter: the texel's area average). ``"surfel"`` sends every ray of a texel along
+  its *surfel's* direction — the geometry texel holding the radiance texel's centre
+  (``_core.surfel_texels``) — so a texel stores the light of the very surface the depth-aware glossy read
+  tests (``_glossy``). Which is better depends on the rays a texel gets (issue 33, experiments/README.md
+  §2 "Radiance along the surfel's ray"): with **one** ray a texel a jittered ray is a random point of the
+  texel, so near a shadow edge the texel holds sun or shade by its jitter while its surfel is the centre's;
+  on Crytek Sponza (64² radiance, 512² geometry, 8 paths) the surfel's ray lowered the glossy MSE on every
+  grid cell and seed (−37 % on the 16×8×8 grid, −7 to −25 % on the 8×4×4 grid's five seeds). With 4×4
+  jittered rays (``sponza_comparison``) the average read better than 32 paths along the surfel's ray for
+  three of four methods on seed 0: a point value is all sun or all shade where a read lands wrong, the
+  average hedges. What the
   renderer calls ``direct + diffuse_indirect + glossy_indirect`` for a camera at the probe is the light
   *reflected* toward the probe (stored in ``radiance``); its ``emission`` (emitters and sky seen
   directly) is stored apart (DESIGN.md "indirect means reflected").
@@ -251,11 +254,11 @@ class BakeConfig:
             DDGI's choice).
         moments_res: interior resolution of the distance-moment map (DDGI uses 16).
         n_sub: ``n_sub``² rays per radiance texel (each traces ``spp`` paths).
-        texel_rays: where a radiance texel's rays leave: ``"surfel"`` (default) all along the direction
-            of the texel's surfel (``_core.surfel_texels``), so the texel holds the light of the surface
-            its surfel describes and ``n_sub``² only multiplies the paths; ``"jittered"``: stratified,
-            jittered over the texel (the texel's area average, issue 3), which a shadow edge inside the
-            texel splits between surfaces the depth-aware read cannot tell apart (module docstring).
+        texel_rays: where a radiance texel's rays leave: ``"jittered"`` (default): stratified, jittered
+            over the texel (the texel's area average, issue 3); ``"surfel"``: all along the direction of
+            the texel's surfel (``_core.surfel_texels``), so the texel holds the light of the surface its
+            surfel describes and ``n_sub``² only multiplies the paths — better with one ray a texel,
+            worse than a 4×4 jittered average on ``sponza_comparison`` (module docstring).
         moment_power: exponent p of the cosine-power lobe for the moments (McGuire §5.2 gives no value;
             DDGI's reference implementation filters distance with a sharp lobe, we default to 50).
         inside_test: how ``inside`` is decided: ``"reach"`` (default; winding-independent: the probe
@@ -288,7 +291,7 @@ class BakeConfig:
     irradiance_res: int = setting(8, lo=1)
     moments_res: int = setting(16, lo=1)
     n_sub: int = setting(2, lo=1)
-    texel_rays: str = setting("surfel", choices=TEXEL_RAYS)
+    texel_rays: str = setting("jittered", choices=TEXEL_RAYS)
     moment_power: float = setting(50.0, lo=0.0, lo_open=True)
     inside_test: str = setting("reach", choices=INSIDE_TESTS)
     inside_neighbours: int = setting(16, lo=1)

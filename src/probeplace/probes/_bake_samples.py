@@ -2,7 +2,7 @@
 
 **What is held to the target.** The radiance maps' seed-to-seed noise: a texel's value changes with the
 bake's key through two draws, the sub-texel jitter of its ``n_sub``² rays (``BakeConfig.texel_rays=
-"jittered"``; along the surfel's direction, the default, there is none) and the paths each ray traces.
+"jittered"``, the default; along the surfel's direction there is none) and the paths each ray traces.
 Its relative noise is r = √(V / M), with V the texel variance between seeds (mean over the texels and RGB
 of the active probes) and M the mean squared radiance of the noise-free maps. A glossy ray reads one texel
 (or a filter of a few), so r bounds the relative noise a glossy read hands to the probe image; it is the
