@@ -75,6 +75,7 @@ _LAZY = {
             "sample_nearest",
             "stream",
             "strip_border",
+            "surfel_directions",
             "surfel_texels",
             "take_queued",
             "texel_directions",
@@ -162,6 +163,7 @@ if TYPE_CHECKING:  # what static checkers and IDEs see; __getattr__ gives the sa
     from .maths import sample_nearest as sample_nearest
     from .maths import stream as stream
     from .maths import strip_border as strip_border
+    from .maths import surfel_directions as surfel_directions
     from .maths import surfel_texels as surfel_texels
     from .maths import take_queued as take_queued
     from .maths import texel_directions as texel_directions

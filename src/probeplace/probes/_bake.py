@@ -85,7 +85,7 @@ from .._core import (
     next_pow2,
     pack_normal,
     scene_box,
-    surfel_texels,
+    surfel_directions,
     texel_directions,
 )
 from .._core.runtime import check_settings, progress_bar, setting
@@ -498,8 +498,7 @@ def texel_ray_directions(
     geometry maps' resolution), or jittered with ``k_dir``."""
     sub = config.n_sub * config.n_sub
     if config.texel_rays == "surfel":
-        idx = surfel_texels(res, geo_res)
-        dirs = texel_directions(geo_res)[idx[:, None], idx[None, :]]
+        dirs = surfel_directions(res, geo_res)
         return jnp.broadcast_to(dirs[None, :, :, None], (b, res, res, sub, 3)).reshape(-1, 3)
     jitter = lambda k: jittered_texel_directions(res, config.n_sub, key=k)
     return jax.vmap(jitter)(jax.random.split(k_dir, b)).reshape(-1, 3)

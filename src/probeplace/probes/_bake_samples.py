@@ -16,7 +16,8 @@ jitter and paths. The texel variance is V(s) = J + P / s: the jitter part J does
 
 * mean((A − B)²) / 2 estimates P / p (the jitter cancels: same rays),
 * mean((A − C)²) / 2 estimates J + P / p (both draws independent), so J is the difference (≥ 0); with
-  ``texel_rays="surfel"`` the rays do not depend on the key and J is taken as exactly 0,
+  ``texel_rays="surfel"`` the rays do not depend on the key, so B is already such a map: C is B (no
+  third bake) and J comes out exactly 0,
 * mean(A · C) estimates M without bias (A and C are independent, so E[A·C] = E[A]·E[C] per texel; the
   mean of A² would add the noise V to it).
 
@@ -31,9 +32,9 @@ takes its floor: ``evaluate._samples``): the texels' squared differences are ske
 estimate of a few paths tends to fall short. When J⁺ alone exceeds target² · M no
 count reaches the target: s is then the smallest count whose path part meets it (P⁺·p/s ≤ target² · M:
 more paths could not lower the jitter's share), and a warning says to raise ``n_sub`` (stratified jitter
-falls faster than 1 / n_sub²: 12 % at n_sub = 2, 2.9 % at 4 on that Cornell case). The pilot costs 3 · p / s
-of the bake's path tracing; the bake itself then runs with the run's key, exactly as a bake with the
-fixed count s would.
+falls faster than 1 / n_sub²: 12 % at n_sub = 2, 2.9 % at 4 on that Cornell case). The pilot costs
+3 · p / s of the bake's path tracing (2 · p / s with surfel rays); the bake itself then runs with the
+run's key, exactly as a bake with the fixed count s would.
 """
 
 from __future__ import annotations
@@ -137,18 +138,19 @@ def _pilot_maps(
     pos: np.ndarray, radiance_fn, res: int, geo_res: int, config: BakeConfig, key
 ) -> tuple[np.ndarray, ...]:
     """The radiance maps A, B (same jitter, other paths) and C (other jitter and paths) of the probes at
-    ``pos``, batch by batch as the bake runs them."""
+    ``pos``, batch by batch as the bake runs them. Surfel rays do not depend on the key, so B already is a
+    map with other rays' draw and other paths: C is B, not a third bake (module docstring)."""
     bsz = config.probes_per_batch
     parts = []
     for i, start in enumerate(range(0, len(pos), bsz)):
         k = jax.random.split(jax.random.fold_in(key, i), 5)
         p = jnp.asarray(pos[start : start + bsz])
-        maps = (
-            texel_radiance(p, radiance_fn, res, geo_res, config, k[0], k[1])[0],
-            texel_radiance(p, radiance_fn, res, geo_res, config, k[0], k[2])[0],
-            texel_radiance(p, radiance_fn, res, geo_res, config, k[3], k[4])[0],
-        )
-        parts.append([np.asarray(m, np.float64) for m in maps])
+        radiance = lambda k_dir, k_rad, p=p: texel_radiance(
+            p, radiance_fn, res, geo_res, config, k_dir, k_rad
+        )[0]
+        a, b = radiance(k[0], k[1]), radiance(k[0], k[2])
+        c = b if config.texel_rays == "surfel" else radiance(k[3], k[4])
+        parts.append([np.asarray(m, np.float64) for m in (a, b, c)])
     return tuple(np.concatenate(x) for x in zip(*parts, strict=True))
 
 
@@ -210,9 +212,7 @@ def choose_bake_spp(
     )
     # per texel (mean over RGB): the paths' and the jitter's squared differences (module docstring)
     d_path = np.mean((a - b) ** 2 / 2, axis=-1).reshape(-1)
-    d_jitter = np.mean((a - c) ** 2 / 2, axis=-1).reshape(-1) - d_path
-    if config.texel_rays == "surfel":  # A and C trace the same rays: J is 0, not an estimate of it
-        d_jitter = np.zeros_like(d_path)
+    d_jitter = np.mean((a - c) ** 2 / 2, axis=-1).reshape(-1) - d_path  # exactly 0 where C is B
     (path_var, path_se), (jitter_var, jitter_se) = mean_and_se(d_path), mean_and_se(d_jitter)
     path_up, jitter_up = path_var + PILOT_Z * path_se, max(jitter_var + PILOT_Z * jitter_se, 0.0)
     mean_sq = float(np.mean(a * c))

@@ -64,6 +64,7 @@ from .._core import (
     oct_encode,
     safe_normalize,
     strip_border,
+    surfel_directions,
     surfel_texels,
     texel_directions,
     texel_of_direction,
@@ -158,7 +159,7 @@ def _surfel_maps(lf: LightFieldProbes, res: int) -> tuple[Array, Array]:
     those texels are unpacked (``LightFieldProbes.normal_at``), not the whole normal maps."""
     idx = surfel_texels(res, lf.geometry_res)
     rows, cols = (a.reshape(-1) for a in np.meshgrid(idx, idx, indexing="ij"))
-    omega = texel_directions(lf.geometry_res, lf.far.dtype)[rows, cols]
+    omega = surfel_directions(res, lf.geometry_res, lf.far.dtype).reshape(-1, 3)
     at = (slice(None), rows + 1, cols + 1)
     point = (lf.distance[at][..., None] * omega[None]).reshape(-1, res, res, 3)
     normal = lf.normal_at(*at).reshape(-1, res, res, 3)

@@ -30,6 +30,7 @@ _LAZY = {
             "sample_bilinear",
             "sample_nearest",
             "strip_border",
+            "surfel_directions",
             "surfel_texels",
             "texel_directions",
             "texel_of_direction",
@@ -63,6 +64,7 @@ if TYPE_CHECKING:  # what static checkers and IDEs see; __getattr__ gives the sa
     from ._octahedral import sample_bilinear as sample_bilinear
     from ._octahedral import sample_nearest as sample_nearest
     from ._octahedral import strip_border as strip_border
+    from ._octahedral import surfel_directions as surfel_directions
     from ._octahedral import surfel_texels as surfel_texels
     from ._octahedral import texel_directions as texel_directions
     from ._octahedral import texel_of_direction as texel_of_direction

@@ -201,6 +201,14 @@ def surfel_texels(res: int, geometry_res: int) -> np.ndarray:
     return (2 * np.arange(res) + 1) * geometry_res // (2 * res)
 
 
+@partial(jax.jit, static_argnames=("res", "geometry_res", "dtype"))
+def surfel_directions(res: int, geometry_res: int, dtype=jnp.float32) -> Float[Array, "res res 3"]:
+    """The direction of each ``res``² texel's surfel: the centre direction of its geometry texel
+    (:func:`surfel_texels`) — where the read's surfel lies and where a ``"surfel"`` bake traces."""
+    idx = surfel_texels(res, geometry_res)
+    return texel_directions(geometry_res, dtype)[idx[:, None], idx[None, :]]
+
+
 @partial(jax.jit, static_argnames=("res", "n_sub", "dtype"))
 def jittered_texel_directions(
     res: int, n_sub: int, *, key: jax.Array, dtype=jnp.float32
