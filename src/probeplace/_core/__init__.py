@@ -62,6 +62,7 @@ _LAZY = {
             "host_rng",
             "jittered_texel_directions",
             "luminance",
+            "REC709_LUMA",
             "next_pow2",
             "norm3",
             "oct_decode",
@@ -91,6 +92,8 @@ _LAZY = {
     **dict.fromkeys(
         (
             "BAKE_SETTINGS_VERSION",
+            "FIRST_HIT_LOBES",
+            "TEXEL_RAYS",
             "BakeSettings",
             "Camera",
             "Hit",
@@ -122,6 +125,8 @@ __all__ = [
 
 if TYPE_CHECKING:  # what static checkers and IDEs see; __getattr__ gives the same at run time
     from ._types import BAKE_SETTINGS_VERSION as BAKE_SETTINGS_VERSION
+    from ._types import FIRST_HIT_LOBES as FIRST_HIT_LOBES
+    from ._types import TEXEL_RAYS as TEXEL_RAYS
     from ._types import BakeSettings as BakeSettings
     from ._types import Camera as Camera
     from ._types import Hit as Hit
@@ -143,6 +148,7 @@ if TYPE_CHECKING:  # what static checkers and IDEs see; __getattr__ gives the sa
     from .files import write_exr as write_exr
     from .files import write_json_atomic as write_json_atomic
     from .files import write_text_atomic as write_text_atomic
+    from .maths import REC709_LUMA as REC709_LUMA
     from .maths import add_border as add_border
     from .maths import border_index as border_index
     from .maths import dot3 as dot3

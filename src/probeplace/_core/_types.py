@@ -228,6 +228,11 @@ class ProbeSet(eqx.Module):
 
 #: Version of the :class:`BakeSettings` record (bumped when its fields or their meaning change).
 BAKE_SETTINGS_VERSION = 3  # 2: first_hit_lobes; 3: texel_rays
+#: Where a radiance texel's rays leave (``probes.BakeConfig.texel_rays``, :class:`BakeSettings`).
+TEXEL_RAYS = ("jittered", "surfel")
+#: What a texel's surface reflects toward the probe into ``radiance`` (``probes.path_traced_radiance``,
+#: :class:`BakeSettings`).
+FIRST_HIT_LOBES = ("diffuse", "all")
 
 
 class BakeSettings(eqx.Module):
@@ -279,12 +284,14 @@ class BakeSettings(eqx.Module):
     def __check_init__(self):
         if self.radiance not in ("path_traced", "custom"):
             raise ValueError(f"radiance must be 'path_traced' or 'custom', got {self.radiance!r}")
-        if self.first_hit_lobes not in ("all", "diffuse"):
-            raise ValueError(f"first_hit_lobes must be 'all' or 'diffuse', got {self.first_hit_lobes!r}")
+        if self.first_hit_lobes not in FIRST_HIT_LOBES:
+            raise ValueError(
+                f"first_hit_lobes must be one of {FIRST_HIT_LOBES}, got {self.first_hit_lobes!r}"
+            )
         if self.backend not in ("jax", "mitsuba"):
             raise ValueError(f"backend must be 'jax' or 'mitsuba', got {self.backend!r}")
-        if self.texel_rays not in ("surfel", "jittered"):
-            raise ValueError(f"texel_rays must be 'surfel' or 'jittered', got {self.texel_rays!r}")
+        if self.texel_rays not in TEXEL_RAYS:
+            raise ValueError(f"texel_rays must be one of {TEXEL_RAYS}, got {self.texel_rays!r}")
 
     def to_dict(self) -> dict:
         """Plain JSON-ready values (the form stored in the baked file and in run metrics)."""

@@ -43,11 +43,12 @@ from __future__ import annotations
 
 import numpy as np
 
+from .._core import REC709_LUMA
 from ..probes import TraceStatus
 
 #: Tracer status codes (``probes.TraceStatus``) → their metrics names.
 STATUS_NAMES = {int(s): s.label for s in TraceStatus}
-_LUMA = np.array([0.2126, 0.7152, 0.0722])  # Rec. 709, as _core.luminance
+_LUMA = np.array(REC709_LUMA)  # as _core.luminance
 #: Standard errors of the reference by which a probe pixel must exceed it to count as leaked light.
 LEAK_SIGMAS = 4.0
 

@@ -70,6 +70,8 @@ from jaxtyping import Array, Float
 
 from .._core import (
     BAKE_SETTINGS_VERSION,
+    FIRST_HIT_LOBES,
+    TEXEL_RAYS,
     BakeSettings,
     ConfigError,
     LightFieldProbes,
@@ -232,10 +234,6 @@ def path_traced_radiance(
 
 
 INSIDE_TESTS = ("reach", "backface", "none")
-#: Where a radiance texel's rays leave (:class:`BakeConfig` ``texel_rays``).
-TEXEL_RAYS = ("surfel", "jittered")
-#: What a texel's surface reflects toward the probe into ``radiance`` (:func:`path_traced_radiance`).
-FIRST_HIT_LOBES = ("diffuse", "all")
 
 
 @dataclasses.dataclass(frozen=True, kw_only=True)

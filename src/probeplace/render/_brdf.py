@@ -28,7 +28,7 @@ import equinox as eqx
 import jax.numpy as jnp
 from jaxtyping import Array, Bool, Float, Int
 
-from .._core import Materials, safe_normalize
+from .._core import REC709_LUMA, Materials, safe_normalize
 from ._sampling import dot3, sample_cosine_hemisphere
 
 # GGX with α → 0 is a mirror (a delta distribution) that neither float32 nor this sampler handles;
@@ -93,7 +93,8 @@ class BrdfSample(eqx.Module):
 
 def _lum(rgb: Float[Array, "3"]) -> Float[Array, ""]:
     # Rec. 709 luminance written out (see dot3: no dot_general under vmap).
-    return 0.2126 * rgb[0] + 0.7152 * rgb[1] + 0.0722 * rgb[2]
+    wr, wg, wb = REC709_LUMA
+    return wr * rgb[0] + wg * rgb[1] + wb * rgb[2]
 
 
 def _alpha(roughness: Float[Array, ""]) -> Float[Array, ""]:

@@ -36,7 +36,7 @@ import math
 
 import numpy as np
 
-from .._core import Scene
+from .._core import REC709_LUMA, Scene
 from ._brdf import ALPHA_MIN, DIELECTRIC_F0, P_LOBE_MIN
 from ._integrator import COMPONENTS, RAY_EPS, SHADOW_EPS
 from ._lights import light_table
@@ -229,7 +229,8 @@ def _schlick(dr, f0, c):
 
 
 def _lum(c):
-    return 0.2126 * c[0] + 0.7152 * c[1] + 0.0722 * c[2]
+    wr, wg, wb = REC709_LUMA  # the JAX integrator's _brdf._lum, term for term
+    return wr * c[0] + wg * c[1] + wb * c[2]
 
 
 def _ggx_d(dr, h, a):

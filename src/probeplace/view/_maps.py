@@ -15,6 +15,7 @@ import zipfile
 
 import numpy as np
 
+from .._core import REC709_LUMA
 from ..export import oct_decode, sh_irradiance
 from ..scene import srgb8
 
@@ -60,8 +61,8 @@ def tile(img: np.ndarray, px: int = TILE_PX) -> np.ndarray:
 
 
 def luminance(rgb: np.ndarray) -> np.ndarray:
-    """Rec. 709 luminance of linear RGB."""
-    return rgb @ np.array([0.2126, 0.7152, 0.0722])
+    """Rec. 709 luminance of linear RGB (``_core.REC709_LUMA``)."""
+    return rgb @ np.array(REC709_LUMA)
 
 
 def exposure_white(radiance: np.ndarray) -> float:

@@ -4,7 +4,8 @@ map and the probes' bordered texel layout (``_octahedral``), the normal maps' tw
 wavefront lane scheduler of the ray loops (``_lanes``).
 
 This ``__init__`` is the group's face for the rest of the package. Every name loads on first use (PEP 562
-``__getattr__``): all but ``_sh`` import JAX, and the NumPy-only ``export`` stage reads the SH basis."""
+``__getattr__``): all but ``_sh`` and ``_colour`` (the luminance weights) import JAX, and the NumPy-only
+``export`` stage reads the SH basis."""
 
 from __future__ import annotations
 
@@ -12,9 +13,10 @@ from typing import TYPE_CHECKING
 
 from .._lazy import lazy_exports
 
-# name -> the private module defining it (all but _sh import JAX)
+# name -> the private module defining it (all but _sh and _colour import JAX)
 _LAZY = {
     **dict.fromkeys(("take_queued", "write_finished"), "_lanes"),
+    "REC709_LUMA": "_colour",
     **dict.fromkeys(
         ("dot3", "luminance", "next_pow2", "norm3", "safe_norm", "safe_normalize", "safe_sqrt"), "_math"
     ),
@@ -45,6 +47,7 @@ _LAZY = {
 }
 
 if TYPE_CHECKING:  # what static checkers and IDEs see; __getattr__ gives the same at run time
+    from ._colour import REC709_LUMA as REC709_LUMA
     from ._lanes import take_queued as take_queued
     from ._lanes import write_finished as write_finished
     from ._math import dot3 as dot3

@@ -9,6 +9,8 @@ from typing import SupportsIndex
 import jax.numpy as jnp
 from jaxtyping import Array, Float
 
+from ._colour import REC709_LUMA
+
 
 def safe_norm(v: Float[Array, "... d"], tiny: float = 1e-12) -> Float[Array, "..."]:
     """Euclidean norm whose gradient at 0 is 0 instead of NaN."""
@@ -44,8 +46,8 @@ def safe_sqrt(x: Float[Array, "..."]) -> Float[Array, "..."]:
 
 
 def luminance(rgb: Float[Array, "... 3"]) -> Float[Array, "..."]:
-    """Rec. 709 relative luminance of linear RGB."""
-    w = jnp.asarray([0.2126, 0.7152, 0.0722], rgb.dtype)
+    """Rec. 709 relative luminance of linear RGB (:data:`REC709_LUMA`)."""
+    w = jnp.asarray(REC709_LUMA, rgb.dtype)
     return rgb @ w
 
 
