@@ -6,7 +6,7 @@ the K probes whose resolved hits add most to the error over the perfect trace. P
 
     PROBEPLACE_SCENE_PATH=../shared/scenes .venv/bin/python experiments/diagnose_glossy.py \\
         results/sponza_comparison/crytek_sponza__grid__b32__s0 [--width 48 --height 36 --glossy-spp 4] \\
-        [--filter depth_aware|bilinear|texel|mip] [--by-probe 8]
+        [--filter depth_normal|depth_aware|bilinear|texel|mip] [--by-probe 8]
 
 The evaluation is rerun at the given (small) size with the run's view; the MSEs are therefore not the
 run's, but their split is what the run's error is made of.
@@ -23,12 +23,14 @@ from omegaconf import OmegaConf
 
 
 def main(argv=None) -> int:
+    from probeplace.probes import DEFAULT_GLOSSY_FILTER, GLOSSY_FILTERS
+
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("run", type=Path, help="a finished run folder (with probes_baked.npz and config.yaml)")
     ap.add_argument("--width", type=int, default=48)
     ap.add_argument("--height", type=int, default=36)
     ap.add_argument("--glossy-spp", type=int, default=4)
-    ap.add_argument("--filter", default="depth_aware", choices=["depth_aware", "bilinear", "texel", "mip"])
+    ap.add_argument("--filter", default=DEFAULT_GLOSSY_FILTER, choices=GLOSSY_FILTERS)
     ap.add_argument("--seed", type=int, default=1)
     ap.add_argument(
         "--by-probe",

@@ -53,7 +53,9 @@ from urllib.parse import unquote
 #: its centre by integer arithmetic (``_core.surfel_texels``; a float round trip had picked either side of
 #: a texel boundary), and a bake may send a texel's rays along its surfel (``BakeConfig.texel_rays``,
 #: default still "jittered") (issue 33).
-RESULTS_VERSION = 7
+#: 8 (2026-12-06): the glossy read's default filter is ``"depth_normal"``: the depth-aware read's texels must
+#: also face as the hit's surface does (``probes._glossy.NORMAL_COS``), every glossy figure moves (issue 33).
+RESULTS_VERSION = 8
 
 #: Input keys recorded but not compared (flattened, as the refusal names them).
 NOT_COMPARED = ("scene.path",)
