@@ -33,14 +33,14 @@
     n_i · n_h ≥ ``NORMAL_COS`` (n_i turned toward the probe; n_h the surfel of the geometry texel the
     trace resolved, in the probe it reads — or, for the perfect trace, the exact hit's normal facing the
     ray's origin, the side of the probe that sees the hit); when none does, the depth test alone decides,
-    as in ``"depth_aware"``. Why: a plane seen at a
-    grazing angle passes within the depth tolerance of points that are not on it. On Crytek Sponza a
-    sunlit floor seen at 83° from a probe 10 m away, extended along the read direction, passes within
-    3–8 % of the distance of small shaded faces standing on it, so their reads blended the floor's sun in
-    (experiments/README.md §2, "What the tail is made of"); the face the worst of those rays hit turns
-    79° from the floor. On the ``sponza_comparison`` preset (seed 0, 128 probes) the normal test lowered every
-    method's glossy MSE by 29–45 % (the grid 0.50 → 0.28× a black image) and brought the light-field
-    estimate within 0.2–1.0× of its perfect trace (trace excess 0.65–1.93 before).
+    as in ``"depth_aware"``. Why: a plane seen at a grazing angle passes within the depth tolerance of
+    points that are not on it. On Crytek Sponza a sunlit floor seen at 83° from a probe 10 m away,
+    extended along the read direction, passes within 3–8 % of the distance of small shaded faces standing
+    on it, so their reads blended the floor's sun in (experiments/README.md §2, "What the tail is made
+    of"); the face the worst of those rays hit turns 79° from the floor. On the ``sponza_comparison``
+    preset (seed 0, 128 probes) the normal test lowered every method's glossy MSE by 29–45 % (the grid
+    0.50 → 0.28× a black image) and the trace's excess over the perfect trace to 0.2–1.0 (0.65–1.93
+    before).
 
   Misses read zero (reflected radiance) or the sky (``include_emission``). Unresolved rays fall back to the
   radiance the usable probe nearest to the last free point sees in the ray's direction (a distant-light
@@ -214,7 +214,7 @@ def _bilinear_depth(maps, points, normals, p, direction, r, n_hit=None) -> Array
 def _read(levels, filt: str, p, direction, lod, r=None, n_hit=None):
     """Filtered read of probe ``p``'s radiance in ``direction`` at MIP level ``lod`` (single ray); ``r``:
     the probe–hit distance (``"depth_aware"``, ``"depth_normal"``; inf: no hit to match, a plain bilinear
-    read); ``n_hit``: the hit's normal as the probe's maps hold it (``"depth_normal"``)."""
+    read); ``n_hit``: the hit's normal, facing the probe (``"depth_normal"``)."""
     if filt == "texel":
         return _nearest(levels[0], p, direction)
     if filt in _SURFEL_FILTERS:
