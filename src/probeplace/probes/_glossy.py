@@ -39,7 +39,7 @@
     on it, so their reads blended the floor's sun in (experiments/README.md §2, "What the tail is made
     of"); the face the worst of those rays hit turns 79° from the floor. On the ``sponza_comparison``
     preset (seed 0, 128 probes) the normal test lowered every method's glossy MSE by 29–45 % (the grid
-    0.50 → 0.28× a black image) and the trace's excess over the perfect trace to 0.2–1.0 (0.65–1.93
+    0.50 → 0.28× a black image) and the trace's excess over the perfect trace to 0.08–1.31 (0.65–1.93
     before).
 
   Misses read zero (reflected radiance) or the sky (``include_emission``). Unresolved rays fall back to the
