@@ -85,7 +85,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from probeplace._core import ConfigError, ResourceError, scene_box, write_text_atomic
+from probeplace._core import TEXEL_RAYS, ConfigError, ResourceError, scene_box, write_text_atomic
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 from _common import RESULTS, atrium_line, env_info, setup_scene_path, write_result
@@ -665,7 +665,7 @@ def parse_args(argv=None) -> argparse.Namespace:
     ap.add_argument(
         "--texel-rays",
         default="surfel",
-        choices=["surfel", "jittered"],
+        choices=TEXEL_RAYS,
         help="where a radiance texel's rays leave (probes.BakeConfig.texel_rays): along its surfel's "
         "direction (default here: with one ray a texel, this benchmark's --n-sub 1, it read better on every "
         "Sponza grid cell and seed, issue 33) or jittered over the texel (the library's default)",

@@ -117,6 +117,8 @@ def _worst(w, l_probe, l_ref, l_diffuse, l_hi, status, agree, spp: int, k: int) 
 
 
 def main(argv=None) -> dict:
+    from probeplace._core import TEXEL_RAYS
+
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument(
         "--grid",
@@ -131,7 +133,7 @@ def main(argv=None) -> dict:
     ap.add_argument(
         "--texel-rays",
         default="surfel",
-        choices=["surfel", "jittered"],
+        choices=TEXEL_RAYS,
         help="where a radiance texel's rays leave (probes.BakeConfig.texel_rays; default as "
         "benchmarks/convergence.py's)",
     )
