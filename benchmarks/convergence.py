@@ -178,6 +178,29 @@ def grid_positions(scene, dims) -> np.ndarray:
     return np.stack(np.meshgrid(*axes, indexing="ij"), -1).reshape(-1, 3) * (hi - lo) + lo
 
 
+def sponza_cell_bench(
+    grid: str, res: int, bake_spp: int, geometry_res: int, texel_rays: str, glossy_ref_spp: int | None = None
+) -> Bench:
+    """The Sponza :class:`Bench` of this benchmark's ``grid`` × ``res`` cell at these settings, the rest its
+    defaults (for the experiments that rerun a cell: experiments/tail_causes.py, spread_parts.py). Raises
+    what ``load_scene`` raises when the scene is not on the scene path."""
+    setup_scene_path()
+    argv = [
+        *("--scenes", "sponza", "--grids", f"sponza:{grid}", "--res", f"sponza:{res}"),
+        *(
+            "--bake-spp",
+            f"sponza:{bake_spp}",
+            "--geometry-res",
+            str(geometry_res),
+            "--texel-rays",
+            texel_rays,
+        ),
+    ]
+    if glossy_ref_spp is not None:
+        argv += ["--glossy-ref-spp", f"sponza:{glossy_ref_spp}"]
+    return Bench("sponza", parse_args(argv), FULL["sponza"]["eval"])
+
+
 class Bench:
     """One scene's shared state: scene, caster, evaluation config and the per-seed shared steps."""
 
@@ -201,7 +224,7 @@ class Bench:
             height=size[1],
             spp=args.eval_spp,
             glossy_spp=args.glossy_spp,
-            glossy_ref_spp=args.glossy_ref_spp,
+            glossy_ref_spp=(scene_values(args.glossy_ref_spp, key, int) or [4])[0],
             max_depth=args.max_depth,
             timing_repeats=args.timing_repeats,
             backend=args.backend,
@@ -635,8 +658,8 @@ def targets(result: dict) -> dict:
 
 
 def scene_values(values: list[str] | None, key: str, kind) -> list | None:
-    """``--grids`` / ``--res`` / ``--bake-spp`` values for scene ``key``: plain values apply to every scene,
-    ``scene:value`` to that scene only (e.g. ``--res cornell:64 sponza:16``)."""
+    """``--grids`` / ``--res`` / ``--bake-spp`` / ``--glossy-ref-spp`` values for scene ``key``: plain values
+    apply to every scene, ``scene:value`` to that scene only (e.g. ``--res cornell:64 sponza:16``)."""
     if not values:
         return None
     out = [kind(v.split(":", 1)[1]) for v in values if v.startswith(f"{key}:")]
@@ -679,7 +702,13 @@ def parse_args(argv=None) -> argparse.Namespace:
         help="glossy rays per pixel (default 16: on Sponza 8x4x4 at 512² geometry the seed spread of glossy "
         "÷ black fell from 0.052 at 4 to 0.015, for ~10 s more a cell)",
     )
-    ap.add_argument("--glossy-ref-spp", type=int, default=4)
+    ap.add_argument(
+        "--glossy-ref-spp",
+        nargs="+",
+        default=None,
+        help="CRN reference paths per glossy ray, e.g. 4 (all scenes) or sponza:16 (default 4; Cornell's "
+        "target divides by this reference's noise floor)",
+    )
     ap.add_argument(
         "--eval-size",
         nargs="+",

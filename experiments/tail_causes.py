@@ -163,15 +163,9 @@ def main(argv=None) -> dict:
     )
     from probeplace.probes import glossy_maps
 
-    cv.setup_scene_path()
     grid = "8x4x4" if args.grid == "auto" else args.grid  # the benchmark's arguments want a grid
-    bench_args = cv.parse_args(
-        ["--scenes", "sponza", "--grids", f"sponza:{grid}", "--res", f"sponza:{args.res}",
-         "--bake-spp", f"sponza:{args.bake_spp}", "--geometry-res", str(args.geometry_res),
-         "--texel-rays", args.texel_rays]
-    )  # fmt: skip
     try:
-        b = cv.Bench("sponza", bench_args, cv.FULL["sponza"]["eval"])
+        b = cv.sponza_cell_bench(grid, args.res, args.bake_spp, args.geometry_res, args.texel_rays)
     except Exception as e:  # the scene lives outside the repository (PROBEPLACE_SCENE_PATH)
         ap.error(f"Crytek Sponza not loaded ({type(e).__name__}: {e}); set PROBEPLACE_SCENE_PATH")
     if args.filter:
