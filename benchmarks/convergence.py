@@ -185,17 +185,9 @@ def sponza_cell_bench(
     defaults (for the experiments that rerun a cell: experiments/tail_causes.py, spread_parts.py). Raises
     what ``load_scene`` raises when the scene is not on the scene path."""
     setup_scene_path()
-    argv = [
-        *("--scenes", "sponza", "--grids", f"sponza:{grid}", "--res", f"sponza:{res}"),
-        *(
-            "--bake-spp",
-            f"sponza:{bake_spp}",
-            "--geometry-res",
-            str(geometry_res),
-            "--texel-rays",
-            texel_rays,
-        ),
-    ]
+    argv = ["--scenes", "sponza", "--grids", f"sponza:{grid}", "--res", f"sponza:{res}"]
+    argv += ["--bake-spp", f"sponza:{bake_spp}", "--geometry-res", str(geometry_res)]
+    argv += ["--texel-rays", texel_rays]
     if glossy_ref_spp is not None:
         argv += ["--glossy-ref-spp", f"sponza:{glossy_ref_spp}"]
     return Bench("sponza", parse_args(argv), FULL["sponza"]["eval"])
