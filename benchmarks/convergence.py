@@ -77,6 +77,7 @@ import argparse
 import dataclasses
 import hashlib
 import json
+import re
 import sys
 import time
 from pathlib import Path
@@ -162,6 +163,12 @@ NOT_MEASURED: dict[str, str] = {}
 
 def log(msg: str) -> None:
     print(f"[convergence {time.strftime('%H:%M:%S')}] {msg}", file=sys.stderr, flush=True)
+
+
+def is_grid(text: str) -> bool:
+    """Whether ``text`` names a uniform grid NxMxK of positive counts written without leading zeros (the
+    ``--grid`` of the experiments that rerun a cell: experiments/tail_causes.py, spread_parts.py)."""
+    return re.fullmatch(r"[1-9]\d*x[1-9]\d*x[1-9]\d*", text) is not None
 
 
 def dims_of(grid: str) -> tuple[int, int, int]:

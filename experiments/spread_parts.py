@@ -25,7 +25,6 @@ from __future__ import annotations
 
 import argparse
 import json
-import re
 import sys
 import time
 from pathlib import Path
@@ -67,10 +66,12 @@ def main(argv=None) -> dict:
     args = ap.parse_args(argv)
     if args.seeds < 2 or args.bake_spp < 1 or args.glossy_ref_spp < 2:
         ap.error("--seeds must be at least 2, --bake-spp at least 1, --glossy-ref-spp at least 2")
-    if not re.fullmatch(r"[1-9]\d*x[1-9]\d*x[1-9]\d*", args.grid):
-        ap.error(f"--grid {args.grid!r}: want NxMxK, e.g. 8x4x4")
 
     import convergence as cv
+
+    if not cv.is_grid(args.grid):
+        ap.error(f"--grid {args.grid!r}: want NxMxK, e.g. 8x4x4")
+
     from probeplace.evaluate import sample_errors, shade_probes
     from probeplace.probes import glossy_maps
 
@@ -90,6 +91,7 @@ def main(argv=None) -> dict:
         reads.append(shade_probes(b.scene, lf, prim, b.config, maps=maps).glossy)
         refs.append(crn.radiance)
         print(f"seed {seed}: baked, shaded and referenced in {time.perf_counter() - t0:.0f} s", flush=True)
+    # every seed's primary samples are seed 0's (ray_seed=0): one set of weights scores them all
     mse = np.array(
         [[np.mean(sample_errors(prim.w_glossy, g, r, prim.spp)[1] ** 2) for r in refs] for g in reads]
     )

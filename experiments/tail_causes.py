@@ -28,7 +28,6 @@ from __future__ import annotations
 import argparse
 import dataclasses
 import json
-import re
 import sys
 from pathlib import Path
 
@@ -148,10 +147,12 @@ def main(argv=None) -> dict:
     args = ap.parse_args(argv)
     if not 0 < args.top <= 100 or args.ref_spp < 0 or args.show < 0:
         ap.error("--top must lie in (0, 100], --ref-spp and --show must not be negative")
-    if args.grid != "auto" and not re.fullmatch(r"[1-9]\d*x[1-9]\d*x[1-9]\d*", args.grid):
-        ap.error(f"--grid {args.grid!r}: want NxMxK, e.g. 8x4x4, or auto")
 
     import convergence as cv
+
+    if args.grid != "auto" and not cv.is_grid(args.grid):
+        ap.error(f"--grid {args.grid!r}: want NxMxK, e.g. 8x4x4, or auto")
+
     from probeplace._core import ConfigError
     from probeplace.evaluate import (
         agreeing_hits,
