@@ -60,6 +60,10 @@ rays: the bake's and the reference's noise alone, what the sample counts control
 ``sponza_grid_seed_spread_bulk`` (the spread of the glossy MSE less each run's 1 % of pixels with the
 largest error, ``top_percent_share``, which makes the raw spread: mostly too-bright reads at small dark
 spots and unresolved rays, ``experiments/tail_causes.py``) with its interval,
+``sponza_grid_seed_spread_converged`` (the spread of each seed's ``mse_glossy_converged``, the unbiased
+estimate of the glossy image's MSE at infinitely many glossy rays and reference paths a pixel,
+``evaluate.converged_sq_error``: no sample's own squared error is in it, so neither the reference's noise
+floor nor the square of one ray meeting a sun glint alone in its pixel) with its interval,
 ``sponza_grid_seed_spread_tail_index`` (each seed's Hill index of its per-pixel glossy error,
 ``evaluate.tail_index``: below 2 the raw spread does not fall as 1/√n with more pixels or samples); and
 the set-up costs of 128 usable probes
@@ -153,6 +157,8 @@ REPORTED = (
     "sponza_grid_seed_spread_fixed_rays_ci95",
     "sponza_grid_seed_spread_bulk",
     "sponza_grid_seed_spread_bulk_ci95",
+    "sponza_grid_seed_spread_converged",
+    "sponza_grid_seed_spread_converged_ci95",
     *(f"sponza_{AUTO}_g512_{f}" for f in AUTO_FIGURES),
 )
 #: Warm runs of each set-up cost (:func:`instrument_costs`); the figure is their median.
@@ -186,7 +192,13 @@ def grid_positions(scene, dims) -> np.ndarray:
 
 
 def sponza_cell_bench(
-    grid: str, res: int, bake_spp: int, geometry_res: int, texel_rays: str, glossy_ref_spp: int | None = None
+    grid: str,
+    res: int,
+    bake_spp: int,
+    geometry_res: int,
+    texel_rays: str,
+    glossy_ref_spp: int | None = None,
+    glossy_spp: int | None = None,
 ) -> Bench:
     """The Sponza :class:`Bench` of this benchmark's ``grid`` × ``res`` cell at these settings, the rest its
     defaults (for the experiments that rerun a cell: experiments/tail_causes.py, spread_parts.py). Raises
@@ -197,6 +209,8 @@ def sponza_cell_bench(
     argv += ["--texel-rays", texel_rays]
     if glossy_ref_spp is not None:
         argv += ["--glossy-ref-spp", f"sponza:{glossy_ref_spp}"]
+    if glossy_spp is not None:
+        argv += ["--glossy-spp", f"sponza:{glossy_spp}"]
     return Bench("sponza", parse_args(argv), FULL["sponza"]["eval"])
 
 
@@ -222,7 +236,7 @@ class Bench:
             width=size[0],
             height=size[1],
             spp=args.eval_spp,
-            glossy_spp=args.glossy_spp,
+            glossy_spp=(scene_values(args.glossy_spp, key, int) or [16])[0],
             glossy_ref_spp=(scene_values(args.glossy_ref_spp, key, int) or [4])[0],
             max_depth=args.max_depth,
             timing_repeats=args.timing_repeats,
@@ -476,6 +490,7 @@ def summarise(m: dict) -> dict:
         "trace_excess": m["trace_excess"],
         "by_status": m["mse_glossy_by_status"],
         "resolved_only": m["mse_glossy_resolved_only"],
+        "mse_glossy_converged": m["mse_glossy_converged"],
         "status_share": m["glossy_status_share"],
         "agreement": m["glossy_hit_agreement"],
         "unresolved": m["unresolved_share"],
@@ -570,15 +585,21 @@ def run_scene(key: str, args, plan: dict, result: dict) -> None:
         # spread, experiments/README.md §2, "What the tail is made of"); and how heavy that tail is, each
         # seed's Hill index (``evaluate.tail_index``: below 2, no count of pixels or samples makes the raw
         # spread fall as 1/√n). Null for cells cached before the figure existed.
+        # And the converged image's MSE (``evaluate.converged_sq_error``): no sample's own square in it, so
+        # neither the reference's noise floor nor the square of a lone ray's sun glint (README §2).
         cached = "a cell was cached before this figure existed: rerun with --fresh"
         tail = [x.get("top_percent_share_glossy") for x in runs]
-        if None in tail:
-            for k in ("sponza_grid_seed_spread_bulk", "sponza_grid_seed_spread_bulk_ci95"):
-                result[k], result["skipped"][k] = None, cached
-        else:
-            bulk = g * (1.0 - np.array(tail))
-            result["sponza_grid_seed_spread_bulk"] = seed_cv(bulk)
-            result["sponza_grid_seed_spread_bulk_ci95"] = cv_interval(bulk)
+        conv = [x.get("mse_glossy_converged") for x in runs]
+        for name, values in (
+            ("bulk", None if None in tail else g * (1.0 - np.array(tail))),
+            ("converged", None if None in conv else np.array(conv)),
+        ):
+            k = f"sponza_grid_seed_spread_{name}"
+            if values is None:
+                for key in (k, f"{k}_ci95"):
+                    result[key], result["skipped"][key] = None, cached
+            else:
+                result[k], result[f"{k}_ci95"] = seed_cv(values), cv_interval(values)
         hill, k = [x.get("tail_index_glossy") for x in runs], "sponza_grid_seed_spread_tail_index"
         result[k] = None if None in hill else hill
         if None in hill:
@@ -657,8 +678,9 @@ def targets(result: dict) -> dict:
 
 
 def scene_values(values: list[str] | None, key: str, kind) -> list | None:
-    """``--grids`` / ``--res`` / ``--bake-spp`` / ``--glossy-ref-spp`` values for scene ``key``: plain values
-    apply to every scene, ``scene:value`` to that scene only (e.g. ``--res cornell:64 sponza:16``)."""
+    """``--grids`` / ``--res`` / ``--bake-spp`` / ``--glossy-spp`` / ``--glossy-ref-spp`` values for scene
+    ``key``: plain values apply to every scene, ``scene:value`` to that scene only (e.g. ``--res cornell:64
+    sponza:16``)."""
     if not values:
         return None
     out = [kind(v.split(":", 1)[1]) for v in values if v.startswith(f"{key}:")]
@@ -696,10 +718,12 @@ def parse_args(argv=None) -> argparse.Namespace:
     ap.add_argument("--eval-spp", type=int, default=None, help="reference paths/pixel (default 32; quick 16)")
     ap.add_argument(
         "--glossy-spp",
-        type=int,
-        default=16,
-        help="glossy rays per pixel (default 16: on Sponza 8x4x4 at 512² geometry the seed spread of glossy "
-        "÷ black fell from 0.052 at 4 to 0.015, for ~10 s more a cell)",
+        nargs="+",
+        default=None,
+        help="glossy rays per pixel, e.g. 16 (all scenes) or sponza:64 (default 16: on Sponza 8x4x4 at 512² "
+        "geometry the seed spread of glossy ÷ black fell from 0.052 at 4 to 0.015, for ~10 s more a cell; "
+        "64 rays at 4 reference paths each halve the raw seed spread of 16 at 16, for the same paths a "
+        "pixel, experiments/README.md §2)",
     )
     ap.add_argument(
         "--glossy-ref-spp",

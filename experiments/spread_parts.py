@@ -55,6 +55,7 @@ def main(argv=None) -> dict:
     ap.add_argument("--res", type=int, default=64, help="radiance map resolution")
     ap.add_argument("--bake-spp", type=int, default=8)
     ap.add_argument("--glossy-ref-spp", type=int, default=4, help="CRN reference paths a glossy ray")
+    ap.add_argument("--glossy-spp", type=int, default=16, help="glossy rays a pixel")
     ap.add_argument("--geometry-res", type=int, default=512)
     ap.add_argument(
         "--texel-rays",
@@ -64,8 +65,11 @@ def main(argv=None) -> dict:
     )
     ap.add_argument("--show", action="store_true", help="print the matrix of glossy MSEs")
     args = ap.parse_args(argv)
-    if args.seeds < 2 or args.bake_spp < 1 or args.glossy_ref_spp < 2:
-        ap.error("--seeds must be at least 2, --bake-spp at least 1, --glossy-ref-spp at least 2")
+    if args.seeds < 2 or args.bake_spp < 1 or args.glossy_ref_spp < 2 or args.glossy_spp < 1:
+        ap.error(
+            "--seeds must be at least 2, --bake-spp at least 1, --glossy-ref-spp at least 2, --glossy-spp at "
+            "least 1"
+        )
 
     import convergence as cv
 
@@ -77,7 +81,13 @@ def main(argv=None) -> dict:
 
     try:
         b = cv.sponza_cell_bench(
-            args.grid, args.res, args.bake_spp, args.geometry_res, args.texel_rays, args.glossy_ref_spp
+            args.grid,
+            args.res,
+            args.bake_spp,
+            args.geometry_res,
+            args.texel_rays,
+            args.glossy_ref_spp,
+            args.glossy_spp,
         )
     except Exception as e:  # the scene lives outside the repository (PROBEPLACE_SCENE_PATH)
         ap.error(f"Crytek Sponza not loaded ({type(e).__name__}: {e}); set PROBEPLACE_SCENE_PATH")
@@ -100,6 +110,7 @@ def main(argv=None) -> dict:
         "seeds": args.seeds,
         "bake_spp": args.bake_spp,
         "glossy_ref_spp": args.glossy_ref_spp,
+        "glossy_spp": args.glossy_spp,
         "mse": mse.tolist(),
     } | spread_parts(mse)
     if args.show:

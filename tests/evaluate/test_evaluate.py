@@ -24,6 +24,7 @@ from probeplace.evaluate import (
     EvalConfig,
     agreeing_hits,
     bootstrap_ci,
+    converged_sq_error,
     evaluate,
     glossy_terms,
     hit_agreement,
@@ -228,6 +229,48 @@ def test_glossy_terms_add_up_on_a_synthetic_case():
     assert t1["by_status"]["hit"] == pytest.approx(a / 2 * (a + b) / 2)
     assert t1["by_status"]["unresolved"] == pytest.approx(b / 2 * (a + b) / 2)
     assert t1["by_status"]["miss"] == 0.0 and t1["trace_excess"] is None
+
+
+def test_converged_mse_by_hand_and_in_glossy_terms():
+    """The converged MSE (``_decompose`` docstring): by hand, the two-sample pixel (a, b) gives a·b, one
+    sample's lone error gives 0 (the plain MSE gives its square ÷ S²); ``glossy_terms`` reports its image
+    mean, and nothing at one sample a pixel."""
+    a, b, big = 0.4, -0.1, 7.0
+    e = lambda errs: sample_errors(
+        np.ones((len(errs), 3)), np.array(errs)[:, None] * np.ones(3), 0.0, len(errs)
+    )
+    assert converged_sq_error(*e([a, b])) == pytest.approx([a * b])
+    assert converged_sq_error(*e([big, 0.0, 0.0, 0.0])) == pytest.approx([0.0], abs=1e-15)
+    assert np.mean(e([big, 0.0, 0.0, 0.0])[1] ** 2) == pytest.approx((big / 4) ** 2)
+    w, lp, lr, lq, st, spp = _synthetic_samples()
+    t = glossy_terms(w, lp, lr, lq, st, spp)
+    assert t["converged"] == pytest.approx(
+        np.mean(converged_sq_error(*sample_errors(w, lp, lr, spp))), rel=1e-12
+    )
+    assert t["sq_px_converged"].shape == t["sq_px"].shape
+    one = glossy_terms(w[:8], lp[:8], lr[:8], lq[:8], st[:8], 1)
+    assert one["converged"] is None and one["sq_px_converged"] is None
+    with pytest.raises(ValueError, match="at least 2 samples"):
+        converged_sq_error(*sample_errors(w[:8], lp[:8], lr[:8], 1))
+
+
+def test_converged_mse_is_unbiased_where_the_plain_mse_is_not():
+    """Closed form: pixels of known mean error μ_p, S samples each with noise of variance σ² (heavy-tailed:
+    Student's t with 3 degrees of freedom, σ² = 3 × scale²). Over R replicate images the plain MSE's mean
+    is mean(μ²) + σ²/S, the converged MSE's mean(μ²); each checked within 5 standard errors of the
+    replicates' mean (fixed seed)."""
+    rng = np.random.default_rng(7)
+    n_px, S, R, scale = 64, 8, 4000, 0.5
+    mu = rng.uniform(-1.0, 1.0, n_px)
+    d = mu[None, :, None, None] + scale * rng.standard_t(3, (R, n_px, S, 1))  # one channel
+    e_s = np.broadcast_to(d / S, (R, n_px, S, 3)).reshape(R, n_px * S, 3)
+    plain = np.array([np.mean(e.reshape(n_px, S, 3).sum(axis=1) ** 2) for e in e_s])
+    conv = np.array([np.mean(converged_sq_error(e, e.reshape(n_px, S, 3).sum(axis=1))) for e in e_s])
+    truth, noise = np.mean(mu**2), 3 * scale**2 / S
+    se = lambda v: np.std(v) / np.sqrt(R)
+    assert abs(conv.mean() - truth) < 5 * se(conv)
+    assert abs(plain.mean() - (truth + noise)) < 5 * se(plain)
+    assert plain.mean() - truth > 10 * se(plain)  # the plain MSE's bias is plain to see
 
 
 def test_bootstrap_relmse_and_agreement():

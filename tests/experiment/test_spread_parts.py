@@ -49,7 +49,14 @@ def test_a_matrix_that_is_not_square_is_refused(shape):
 
 
 @pytest.mark.parametrize(
-    "argv", [["--seeds", "1"], ["--grid", "8x4"], ["--bake-spp", "0"], ["--glossy-ref-spp", "1"]]
+    "argv",
+    [
+        ["--seeds", "1"],
+        ["--grid", "8x4"],
+        ["--bake-spp", "0"],
+        ["--glossy-ref-spp", "1"],
+        ["--glossy-spp", "0"],
+    ],
 )
 def test_bad_arguments_exit_2_before_any_work(argv, capsys):
     with pytest.raises(SystemExit) as e:

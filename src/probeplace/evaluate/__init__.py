@@ -7,6 +7,7 @@ from ._config import EvalConfig as EvalConfig
 from ._config import check_eval_memory as check_eval_memory
 from ._decompose import agreeing_hits as agreeing_hits
 from ._decompose import bootstrap_ci as bootstrap_ci
+from ._decompose import converged_sq_error as converged_sq_error
 from ._decompose import glossy_terms as glossy_terms
 from ._decompose import hit_agreement as hit_agreement
 from ._decompose import pixel_sq_error as pixel_sq_error

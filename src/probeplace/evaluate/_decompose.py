@@ -12,6 +12,21 @@ error). A term can be negative when a status's errors cancel the others'. ``reso
 of the image whose unresolved rays carry the reference radiance, mean((e − e⁽ᵘⁿʳᵉˢᵒˡᵛᵉᵈ⁾)²): the
 resolved rays scored apart.
 
+**Converged MSE.** e_px² overstates the error of the image the probes would give with infinitely many
+glossy rays and reference paths a pixel. Given the pixel (and the bake), its S samples' errors
+d_s = S·e_s are independent and identically distributed — each has its own camera jitter, GGX direction
+and reference paths — so E[e_px²] = (E d)² + Var(d)/S: the reference's noise floor and the scatter of
+the lobe's directions ride on the squared error. The U-statistic of the pairs (Hoeffding 1948, "A class
+of statistics with asymptotically normal distribution"),
+
+    U_px = Σ_{s≠t} d_s d_t / (S(S − 1)) = S/(S − 1) · (e_px² − Σ_s e_s²),
+
+is unbiased for (E d)², the converged image's squared error, and holds no d_s² term: one sample's large
+error (a glossy ray that alone in its pixel meets a sun glint, a reference firefly) enters only through
+its products with the pixel's other samples, where e_px² takes its square — the heavy tail that makes
+the plain MSE's seed-to-seed spread (issue 33, experiments/README.md §2). A pixel's U can be negative;
+the image's mean is the estimate. It needs S ≥ 2.
+
 **Perfect trace.** The same estimator with the radiance read at the exact hit (L_perfect): its MSE is
 the representation floor; the trace's share is MSE − MSE_perfect and ``trace_excess`` = MSE /
 MSE_perfect − 1.
@@ -112,6 +127,18 @@ def sample_errors(w, l_est, l_ref, spp: int) -> tuple[np.ndarray, np.ndarray]:
     return e_s, e_s.reshape(w.shape[0] // spp, spp, -1).sum(axis=1)
 
 
+def converged_sq_error(e_s: np.ndarray, e_px: np.ndarray) -> np.ndarray:
+    """Per pixel (mean over RGB), the unbiased estimate of the squared error it would have with
+    infinitely many samples: S/(S − 1)·(e_px² − Σ_s e_s²) from :func:`sample_errors`' ``e_s`` (n, 3) and
+    ``e_px`` (n / S, 3) (module docstring, "Converged MSE"). Raises ValueError below 2 samples a pixel."""
+    n_px = e_px.shape[0]
+    spp = e_s.shape[0] // n_px
+    if spp < 2:
+        raise ValueError(f"the converged MSE needs at least 2 samples a pixel, got {spp}")
+    sum_sq = (e_s.reshape(n_px, spp, -1) ** 2).sum(axis=1)
+    return np.mean(spp / (spp - 1) * (e_px**2 - sum_sq), axis=1)
+
+
 def sample_charges(e_part: np.ndarray, e_px: np.ndarray) -> np.ndarray:
     """Each sample's charge in the MSE (module docstring, "Additive split"): its error ``e_part`` (n, 3;
     a sample's whole error e_s or any additive part of it) times its pixel's total error ``e_px``
@@ -139,8 +166,10 @@ def glossy_terms(
 
     Returns:
         ``mse``, ``mse_perfect_trace``, ``trace_share``, ``trace_excess`` (None when the floor is 0),
-        ``by_status`` {miss, hit, unresolved} (adds up to ``mse``), ``resolved_only``, and the per-pixel
-        squared errors ``sq_px`` / ``sq_px_perfect`` ((n_pixels,), mean over RGB) for confidence intervals.
+        ``by_status`` {miss, hit, unresolved} (adds up to ``mse``), ``resolved_only``, ``converged`` (the
+        converged image's MSE, module docstring; None at one sample a pixel), and the per-pixel squared
+        errors ``sq_px`` / ``sq_px_perfect`` / ``sq_px_converged`` ((n_pixels,), mean over RGB; the last
+        None at one sample a pixel) for confidence intervals.
     """
     status = np.asarray(status)
     e_s, e_px = sample_errors(w, l_probe, l_ref, spp)
@@ -151,6 +180,7 @@ def glossy_terms(
     charge = sample_charges(e_s, e_px)
     by_status = {name: float(np.sum(charge[status == k])) for k, name in STATUS_NAMES.items()}
     e_res = (e_s * (status != TraceStatus.UNRESOLVED)[:, None]).reshape(n_px, spp, -1).sum(axis=1)
+    sq_conv = converged_sq_error(e_s, e_px) if spp > 1 else None
     return {
         "mse": mse,
         "mse_perfect_trace": mse_p,
@@ -158,7 +188,9 @@ def glossy_terms(
         "trace_excess": mse / mse_p - 1.0 if mse_p > 0 else None,
         "by_status": by_status,
         "resolved_only": float(np.mean(e_res**2)),
+        "converged": None if sq_conv is None else float(np.mean(sq_conv)),
         "sq_px": np.mean(e_px**2, axis=1),
+        "sq_px_converged": sq_conv,
         "sq_px_perfect": np.mean(e_perf**2, axis=1),
     }
 

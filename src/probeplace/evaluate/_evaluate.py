@@ -312,6 +312,7 @@ def _glossy_scores(scene, config: EvalConfig, prim, crn, shading, perfect, imgs,
         trace_excess=terms["trace_excess"],
         mse_by_status=terms["by_status"],
         mse_resolved_only=terms["resolved_only"],
+        mse_converged=terms["converged"],
         glossy_status_share={
             name: (float(np.mean(st[gl] == k)) if n_gl else 0.0) for k, name in STATUS_NAMES.items()
         },
@@ -322,6 +323,7 @@ def _glossy_scores(scene, config: EvalConfig, prim, crn, shading, perfect, imgs,
         relmse_perfect_trace=relative_mse(perfect_g, crn_ref_g, eps=config.relmse_eps),
         ci95_mse_perfect_trace=interval95(config, terms["sq_px_perfect"]),
         ci95_mse_trace_share=interval95(config, terms["sq_px"] - terms["sq_px_perfect"]),
+        ci95_mse_converged=None if S < 2 else interval95(config, terms["sq_px_converged"]),
     )
 
 

@@ -209,6 +209,10 @@ class GlossyScores(IndirectScores):
     trace_excess: float | None = None
     mse_by_status: dict[str, float] | None = field(default=None, metadata=_part("mse", "glossy_by_status"))
     mse_resolved_only: float | None = field(default=None, metadata=_part("mse", "glossy_resolved_only"))
+    # The image's MSE at infinitely many glossy rays and reference paths a pixel, estimated without bias
+    # (``_decompose.converged_sq_error``): no sample's own squared error in it, so not the square of a sun
+    # glint met by one ray of a pixel. Null at one glossy ray a pixel.
+    mse_converged: float | None = field(default=None, metadata=_part("mse", "glossy_converged"))
     glossy_status_share: dict[str, float] | None = None
     glossy_hit_agreement: float | None = None
     glossy_hit_agreement_rays: int | None = None
@@ -221,6 +225,7 @@ class GlossyScores(IndirectScores):
     ci95_mse_trace_share: Interval | None = field(
         default=None, metadata=_part("ci95_mse", "glossy_trace_share")
     )
+    ci95_mse_converged: Interval | None = field(default=None, metadata=_part("ci95_mse", "glossy_converged"))
 
 
 @dataclasses.dataclass(frozen=True)
