@@ -23,9 +23,9 @@ of statistics with asymptotically normal distribution"),
 
 is unbiased for (E d)², the converged image's squared error, and holds no d_s² term: one sample's large
 error (a glossy ray that alone in its pixel meets a sun glint, a reference firefly) enters only through
-its products with the pixel's other samples, where e_px² takes its square — the heavy tail that makes
-the plain MSE's seed-to-seed spread (issue 33, experiments/README.md §2). A pixel's U can be negative;
-the image's mean is the estimate. It needs S ≥ 2.
+its products with the pixel's other samples, where e_px² takes its square — part of the heavy tail
+behind the plain MSE's seed-to-seed spread (issue 33, experiments/README.md §2). A pixel's U can be
+negative; the image's mean is the estimate. It needs S ≥ 2.
 
 **Perfect trace.** The same estimator with the radiance read at the exact hit (L_perfect): its MSE is
 the representation floor; the trace's share is MSE − MSE_perfect and ``trace_excess`` = MSE /
