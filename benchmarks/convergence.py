@@ -596,8 +596,8 @@ def run_scene(key: str, args, plan: dict, result: dict) -> None:
         ):
             k = f"sponza_grid_seed_spread_{name}"
             if values is None:
-                for key in (k, f"{k}_ci95"):
-                    result[key], result["skipped"][key] = None, cached
+                for figure in (k, f"{k}_ci95"):
+                    result[figure], result["skipped"][figure] = None, cached
             else:
                 result[k], result[f"{k}_ci95"] = seed_cv(values), cv_interval(values)
         hill, k = [x.get("tail_index_glossy") for x in runs], "sponza_grid_seed_spread_tail_index"

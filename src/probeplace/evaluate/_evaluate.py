@@ -323,7 +323,9 @@ def _glossy_scores(scene, config: EvalConfig, prim, crn, shading, perfect, imgs,
         relmse_perfect_trace=relative_mse(perfect_g, crn_ref_g, eps=config.relmse_eps),
         ci95_mse_perfect_trace=interval95(config, terms["sq_px_perfect"]),
         ci95_mse_trace_share=interval95(config, terms["sq_px"] - terms["sq_px_perfect"]),
-        ci95_mse_converged=None if S < 2 else interval95(config, terms["sq_px_converged"]),
+        ci95_mse_converged=(
+            None if terms["sq_px_converged"] is None else interval95(config, terms["sq_px_converged"])
+        ),
     )
 
 
