@@ -173,7 +173,8 @@ def log(msg: str) -> None:
 
 def is_grid(text: str) -> bool:
     """Whether ``text`` names a uniform grid NxMxK of positive counts written without leading zeros (the
-    ``--grid`` of the experiments that rerun a cell: experiments/tail_causes.py, spread_parts.py)."""
+    ``--grid`` of the experiments that rerun a cell: experiments/tail_causes.py, spread_parts.py,
+    ray_allocation.py)."""
     return re.fullmatch(r"[1-9]\d*x[1-9]\d*x[1-9]\d*", text) is not None
 
 
@@ -201,8 +202,8 @@ def sponza_cell_bench(
     glossy_spp: int | None = None,
 ) -> Bench:
     """The Sponza :class:`Bench` of this benchmark's ``grid`` × ``res`` cell at these settings, the rest its
-    defaults (for the experiments that rerun a cell: experiments/tail_causes.py, spread_parts.py). Raises
-    what ``load_scene`` raises when the scene is not on the scene path."""
+    defaults (for the experiments that rerun a cell: experiments/tail_causes.py, spread_parts.py,
+    ray_allocation.py). Raises what ``load_scene`` raises when the scene is not on the scene path."""
     setup_scene_path()
     argv = ["--scenes", "sponza", "--grids", f"sponza:{grid}", "--res", f"sponza:{res}"]
     argv += ["--bake-spp", f"sponza:{bake_spp}", "--geometry-res", str(geometry_res)]
