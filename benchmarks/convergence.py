@@ -215,6 +215,45 @@ def sponza_cell_bench(
     return Bench("sponza", parse_args(argv), FULL["sponza"]["eval"])
 
 
+def add_cell_arguments(ap: argparse.ArgumentParser, *, seeds: int, bake_spp: int, glossy_spp: int) -> None:
+    """The arguments of an experiment that reruns one Sponza cell over seeds 0 … N − 1 (spread_parts.py,
+    ray_allocation.py): the cell (grid, radiance and geometry resolution, texel rays) and its counts, as
+    :func:`sponza_cell_bench` takes them; the defaults that differ between the experiments are given."""
+    ap.add_argument("--grid", default="8x4x4", help="uniform grid NxMxK (a convergence cell's)")
+    ap.add_argument("--seeds", type=int, default=seeds, help="bake and reference seeds, 0 … N − 1 (N >= 2)")
+    ap.add_argument("--res", type=int, default=64, help="radiance map resolution")
+    ap.add_argument("--bake-spp", type=int, default=bake_spp)
+    ap.add_argument("--glossy-ref-spp", type=int, default=4, help="CRN reference paths a glossy ray")
+    ap.add_argument("--glossy-spp", type=int, default=glossy_spp, help="glossy rays a pixel")
+    ap.add_argument("--geometry-res", type=int, default=512)
+    ap.add_argument(
+        "--texel-rays",
+        default="surfel",
+        choices=TEXEL_RAYS,
+        help="where a radiance texel's rays leave (default as this benchmark's)",
+    )
+
+
+def cell_bench_of(ap: argparse.ArgumentParser, args: argparse.Namespace) -> tuple[Bench, np.ndarray]:
+    """The bench of :func:`add_cell_arguments`' cell and its grid's probe positions; exits with status 2
+    through ``ap.error`` for a grid that is not NxMxK or a Sponza that is not on the scene path."""
+    if not is_grid(args.grid):
+        ap.error(f"--grid {args.grid!r}: want NxMxK, e.g. 8x4x4")
+    try:
+        b = sponza_cell_bench(
+            args.grid,
+            args.res,
+            args.bake_spp,
+            args.geometry_res,
+            args.texel_rays,
+            args.glossy_ref_spp,
+            args.glossy_spp,
+        )
+    except Exception as e:  # the scene lives outside the repository (PROBEPLACE_SCENE_PATH)
+        ap.error(f"Crytek Sponza not loaded ({type(e).__name__}: {e}); set PROBEPLACE_SCENE_PATH")
+    return b, grid_positions(b.scene, dims_of(args.grid))
+
+
 class Bench:
     """One scene's shared state: scene, caster, evaluation config and the per-seed shared steps."""
 

@@ -47,22 +47,10 @@ def spread_parts(mse: np.ndarray) -> dict:
 
 
 def main(argv=None) -> dict:
-    from probeplace._core import TEXEL_RAYS
+    import convergence as cv
 
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    ap.add_argument("--grid", default="8x4x4", help="uniform grid NxMxK (a convergence cell's)")
-    ap.add_argument("--seeds", type=int, default=5, help="bake and reference seeds, 0 … N − 1 (N >= 2)")
-    ap.add_argument("--res", type=int, default=64, help="radiance map resolution")
-    ap.add_argument("--bake-spp", type=int, default=8)
-    ap.add_argument("--glossy-ref-spp", type=int, default=4, help="CRN reference paths a glossy ray")
-    ap.add_argument("--glossy-spp", type=int, default=16, help="glossy rays a pixel")
-    ap.add_argument("--geometry-res", type=int, default=512)
-    ap.add_argument(
-        "--texel-rays",
-        default="surfel",
-        choices=TEXEL_RAYS,
-        help="where a radiance texel's rays leave (default as benchmarks/convergence.py's)",
-    )
+    cv.add_cell_arguments(ap, seeds=5, bake_spp=8, glossy_spp=16)
     ap.add_argument("--show", action="store_true", help="print the matrix of glossy MSEs")
     args = ap.parse_args(argv)
     if args.seeds < 2 or args.bake_spp < 1 or args.glossy_ref_spp < 2 or args.glossy_spp < 1:
@@ -70,28 +58,11 @@ def main(argv=None) -> dict:
             "--seeds must be at least 2, --bake-spp at least 1, --glossy-ref-spp at least 2, --glossy-spp at "
             "least 1"
         )
-
-    import convergence as cv
-
-    if not cv.is_grid(args.grid):
-        ap.error(f"--grid {args.grid!r}: want NxMxK, e.g. 8x4x4")
+    b, pos = cv.cell_bench_of(ap, args)
 
     from probeplace.evaluate import sample_errors, shade_probes
     from probeplace.probes import glossy_maps
 
-    try:
-        b = cv.sponza_cell_bench(
-            args.grid,
-            args.res,
-            args.bake_spp,
-            args.geometry_res,
-            args.texel_rays,
-            args.glossy_ref_spp,
-            args.glossy_spp,
-        )
-    except Exception as e:  # the scene lives outside the repository (PROBEPLACE_SCENE_PATH)
-        ap.error(f"Crytek Sponza not loaded ({type(e).__name__}: {e}); set PROBEPLACE_SCENE_PATH")
-    pos = cv.grid_positions(b.scene, cv.dims_of(args.grid))
     reads, refs = [], []
     for seed in range(args.seeds):
         t0 = time.perf_counter()

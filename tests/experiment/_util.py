@@ -9,6 +9,16 @@ CONFIGS = ROOT / "configs"
 PRESETS = sorted(p.stem for p in (CONFIGS / "experiment").glob("*.yaml"))
 
 
+def experiment_script(name: str):
+    """experiments/``name``.py loaded as a module (the experiments are scripts, not a package)."""
+    import importlib.util
+
+    spec = importlib.util.spec_from_file_location(name, ROOT / "experiments" / f"{name}.py")
+    mod = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(mod)
+    return mod
+
+
 def compose(overrides: list[str], *, hydra_cfg: bool = False):
     """The config experiments/run.py would get for ``overrides`` (with ``hydra`` when ``hydra_cfg``)."""
     from hydra import compose as hydra_compose

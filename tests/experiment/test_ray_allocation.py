@@ -5,22 +5,16 @@ refusals."""
 
 from __future__ import annotations
 
-import importlib.util
 import itertools
 
 import numpy as np
 import pytest
 
-from ._util import ROOT
+from ._util import experiment_script
 
 
 def _module():
-    spec = importlib.util.spec_from_file_location(
-        "ray_allocation", ROOT / "experiments" / "ray_allocation.py"
-    )
-    mod = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(mod)
-    return mod
+    return experiment_script("ray_allocation")
 
 
 def _pairs_oracle(x: np.ndarray, n: np.ndarray) -> float:

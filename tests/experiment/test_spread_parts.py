@@ -4,19 +4,14 @@ the matrix's mean), and its refusals."""
 
 from __future__ import annotations
 
-import importlib.util
-
 import numpy as np
 import pytest
 
-from ._util import ROOT
+from ._util import experiment_script
 
 
 def _module():
-    spec = importlib.util.spec_from_file_location("spread_parts", ROOT / "experiments" / "spread_parts.py")
-    mod = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(mod)
-    return mod
+    return experiment_script("spread_parts")
 
 
 def test_each_part_is_its_own_effect():

@@ -3,21 +3,16 @@ one known cause each, and the invariant that the shares add up to 1."""
 
 from __future__ import annotations
 
-import importlib.util
-
 import numpy as np
 import pytest
 
-from ._util import ROOT
+from ._util import experiment_script
 
 MISS, HIT, UNRESOLVED, NO_RAY = 0, 1, 2, -1
 
 
 def _module():
-    spec = importlib.util.spec_from_file_location("tail_causes", ROOT / "experiments" / "tail_causes.py")
-    mod = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(mod)
-    return mod
+    return experiment_script("tail_causes")
 
 
 def _pixels(rows):

@@ -3,22 +3,16 @@ a probe at the origin behind a half-plane screen z = 1, x < 0 (its edge the y ax
 
 from __future__ import annotations
 
-import importlib.util
 from types import SimpleNamespace
 
 import numpy as np
 import pytest
 
-from ._util import ROOT
+from ._util import experiment_script
 
 
 def _module():
-    spec = importlib.util.spec_from_file_location(
-        "unresolved_floor", ROOT / "experiments" / "unresolved_floor.py"
-    )
-    mod = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(mod)
-    return mod
+    return experiment_script("unresolved_floor")
 
 
 class _Screen:
