@@ -138,7 +138,12 @@ def spreads(errors: list[np.ndarray], blacks: list[np.ndarray], budgets, views=N
     from convergence import cv_interval, seed_cv
 
     n_px, S = errors[0].shape[:2]
-    spread = lambda v: {"cv": seed_cv(v), "ci95": cv_interval(v), "mean": float(np.mean(v))}
+    spread = lambda v: {
+        "cv": seed_cv(v),
+        "ci95": cv_interval(v),
+        "mean": float(np.mean(v)),
+        "values": list(v),
+    }
     out = {"uniform": {}, "allocated": {k: {} for k in SCORES}}
     for k in sorted({S // 8, S // 4, S // 2, S, *budgets} - {0, 1}):
         n = np.full(n_px, k)

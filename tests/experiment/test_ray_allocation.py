@@ -134,6 +134,10 @@ def test_spreads_of_two_seeds_that_differ_by_a_factor_two():
     cvs += [d["converged"]["cv"] for rows in out["allocated"].values() for d in rows.values()]
     assert len(cvs) == 12
     assert cvs == pytest.approx([0.6] * 12, rel=1e-9)
+    plain = out["uniform"][16]["plain"]["values"]  # each seed's figure, in seed order
+    assert plain == pytest.approx(
+        [np.mean(x.mean(axis=1) ** 2), np.mean((2 * x).mean(axis=1) ** 2)], rel=1e-12
+    )
 
 
 def test_split_without_view_dependence_is_the_converged_mse():
