@@ -23,9 +23,10 @@ black image's −w L_ref, and spends those rays three ways:
   rays of m other seeds (:func:`split_converged`): what a shared, many-ray estimate of the view-dependent
   part would buy.
 
-The data cap n_i at S (64 by default), so at B = S/2 the hardest pixels are already at the cap: the gain
-at larger budgets, where they could take hundreds of rays, is not measured here. A spread is the
-benchmark's ``seed_cv`` with its 95 % interval (``cv_interval``); ten seeds give about ×0.7–1.9.
+The data cap n_i at S (64 by default; at B = S/2 the hardest pixels are already at it). A larger
+``--glossy-spp`` lifts the cap but also narrows every ray's read cone, 1/(S pdf) (``probes._glossy``), so
+the first k of S rays score a sharper read than a k-ray run would. A spread is the benchmark's ``seed_cv``
+with its 95 % interval (``cv_interval``) and each seed's figure; ten seeds give about ×0.7–1.9.
 
     PROBEPLACE_SCENE_PATH=../shared/scenes .venv/bin/python experiments/ray_allocation.py \\
         --grid 8x4x4 --seeds 10 --glossy-spp 64 --glossy-ref-spp 4 --bake-spp 32
