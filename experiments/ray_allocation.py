@@ -59,23 +59,25 @@ def per_ray(w, est, ref, spp: int) -> np.ndarray:
 
 
 def converged_mse_of_counts(x: np.ndarray, n: np.ndarray) -> float:
-    """The converged glossy MSE from the first ``n[i]`` rays of pixel i: per pixel and channel the mean over
-    ordered pairs of different rays of x_s x_t, n/(n − 1)·(m² − Σ x² / n²) with m the rays' mean — the
-    U-statistic ``evaluate.converged_sq_error`` takes over all S rays —, averaged over channels and pixels.
+    """The converged glossy MSE from the first ``n[i]`` rays of pixel i: ``evaluate.converged_sq_error`` (per
+    pixel the mean over ordered pairs of different rays of x_s x_t) of each group of pixels that keep the
+    same count, averaged over all pixels.
 
     Args:
         x: (pixels, S, 3) each ray's error w (L_probe − L_ref).
         n: (pixels,) rays each pixel keeps, 2 … S.
     """
+    from probeplace.evaluate import converged_sq_error
+
     x = np.asarray(x, np.float64)
     n = np.asarray(n)
     if n.shape != x.shape[:1] or n.min() < MIN_RAYS or n.max() > x.shape[1]:
         raise ValueError(f"want one count in [{MIN_RAYS}, {x.shape[1]}] a pixel for {x.shape[0]} pixels")
-    keep = (np.arange(x.shape[1])[None, :] < n[:, None])[..., None]
-    nn = n[:, None].astype(np.float64)
-    m = (x * keep).sum(axis=1) / nn
-    sq = (x * x * keep).sum(axis=1) / nn**2
-    return float(np.mean(nn / (nn - 1) * (m * m - sq)))
+    total = 0.0
+    for k in np.unique(n):
+        e_s = x[n == k, :k].reshape(-1, 3) / k  # sample_errors' parts, w (L − L_ref) / S with S = k
+        total += float(np.sum(converged_sq_error(e_s, e_s.reshape(-1, k, 3).sum(axis=1))))
+    return total / len(n)
 
 
 def allocate(score: np.ndarray, budget: float, cap: int) -> np.ndarray:
@@ -155,11 +157,12 @@ def spreads(errors: list[np.ndarray], blacks: list[np.ndarray], budgets, views=N
         }
     for kind in SCORES:
         pilots = errors if kind == "error" else blacks
+        scores = [pilot_score(p, kind) for p in pilots]  # seed j's pilot is seed j + 1's run
         for budget in budgets:
-            values = []
-            for j, x in enumerate(errors):
-                n = allocate(pilot_score(pilots[(j + 1) % len(errors)], kind), budget, S)
-                values.append(converged_mse_of_counts(x, n))
+            values = [
+                converged_mse_of_counts(x, allocate(scores[(j + 1) % len(errors)], budget, S))
+                for j, x in enumerate(errors)
+            ]
             out["allocated"][kind][budget] = {"converged": spread(values)}
     if views is not None:
         out["split"] = {}
