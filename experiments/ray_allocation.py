@@ -166,11 +166,11 @@ def spreads(errors: list[np.ndarray], blacks: list[np.ndarray], budgets, views=N
             out["allocated"][kind][budget] = {"converged": spread(values)}
     if views is not None:
         out["split"] = {}
-        for m in sorted({1, len(errors) - 1}):
-            n = len(views)
+        n_seeds = len(views)
+        for m in sorted({1, n_seeds - 1}):
             values = [
                 split_converged(
-                    x, views[j], np.concatenate([views[(j + i) % n] for i in range(1, m + 1)], axis=1)
+                    x, views[j], np.concatenate([views[(j + i) % n_seeds] for i in range(1, m + 1)], axis=1)
                 )
                 for j, x in enumerate(errors)
             ]
