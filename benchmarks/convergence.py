@@ -763,8 +763,8 @@ def parse_args(argv=None) -> argparse.Namespace:
         help="glossy rays per pixel, e.g. 16 (all scenes) or sponza:64 (default 16: on Sponza 8x4x4 at 512² "
         "geometry the seed spread of glossy ÷ black fell from 0.052 at 4 to 0.015, for ~10 s more a cell; "
         "64 rays at 4 reference paths each halve the raw seed spread of 16 at 16, for the same paths a "
-        "pixel; 256 at 4 bring it to 4.1 %% on five seeds, 5.3 %% on ten, for ~3× the shading, "
-        "experiments/README.md §2)",
+        "pixel; 256 at 4 bring it to 4.1 %% on five seeds, 5.3 %% on ten, for ~3× the shading; 512 at 4 to "
+        "3.2 %% on ten, for twice that again, experiments/README.md §2)",
     )
     ap.add_argument(
         "--glossy-ref-spp",
