@@ -239,19 +239,26 @@ def cell_bench_of(ap: argparse.ArgumentParser, args: argparse.Namespace) -> tupl
     through ``ap.error`` for a grid that is not NxMxK or a Sponza that is not on the scene path."""
     if not is_grid(args.grid):
         ap.error(f"--grid {args.grid!r}: want NxMxK, e.g. 8x4x4")
-    try:
-        b = sponza_cell_bench(
-            args.grid,
-            args.res,
-            args.bake_spp,
-            args.geometry_res,
-            args.texel_rays,
-            args.glossy_ref_spp,
-            args.glossy_spp,
-        )
-    except Exception as e:  # the scene lives outside the repository (PROBEPLACE_SCENE_PATH)
-        ap.error(f"Crytek Sponza not loaded ({type(e).__name__}: {e}); set PROBEPLACE_SCENE_PATH")
+    b = sponza_cell_bench_or_exit(
+        ap,
+        args.grid,
+        args.res,
+        args.bake_spp,
+        args.geometry_res,
+        args.texel_rays,
+        args.glossy_ref_spp,
+        args.glossy_spp,
+    )
     return b, grid_positions(b.scene, dims_of(args.grid))
+
+
+def sponza_cell_bench_or_exit(ap: argparse.ArgumentParser, *bench_args) -> Bench:
+    """:func:`sponza_cell_bench` of ``bench_args``, or exit with status 2 through ``ap.error`` when Sponza
+    is not on the scene path (it lives outside the repository: PROBEPLACE_SCENE_PATH)."""
+    try:
+        return sponza_cell_bench(*bench_args)
+    except Exception as e:
+        ap.error(f"Crytek Sponza not loaded ({type(e).__name__}: {e}); set PROBEPLACE_SCENE_PATH")
 
 
 class Bench:
@@ -760,11 +767,10 @@ def parse_args(argv=None) -> argparse.Namespace:
         "--glossy-spp",
         nargs="+",
         default=None,
-        help="glossy rays per pixel, e.g. 16 (all scenes) or sponza:64 (default 16: on Sponza 8x4x4 at 512² "
-        "geometry the seed spread of glossy ÷ black fell from 0.052 at 4 to 0.015, for ~10 s more a cell; "
-        "64 rays at 4 reference paths each halve the raw seed spread of 16 at 16, for the same paths a "
-        "pixel; 256 at 4 bring it to 4.1 %% on five seeds, 5.3 %% on ten, for ~3× the shading; 512 at 4 to "
-        "3.2 %% on ten, for twice that again, experiments/README.md §2)",
+        help="glossy rays per pixel, e.g. 16 (all scenes) or sponza:512 (default 16, for speed; the seeds' raw "
+        "spread falls as the rays grow: on Sponza 8x4x4 at 512² geometry, 512 rays at 4 reference paths a "
+        "ray read 3.5 %% on twenty seeds, for 156-200 s of shading a frame on 2 cores; experiments/README.md "
+        "§2)",
     )
     ap.add_argument(
         "--glossy-ref-spp",

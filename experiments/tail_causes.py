@@ -165,10 +165,7 @@ def main(argv=None) -> dict:
     from probeplace.probes import glossy_maps
 
     grid = "8x4x4" if args.grid == "auto" else args.grid  # the benchmark's arguments want a grid
-    try:
-        b = cv.sponza_cell_bench(grid, args.res, args.bake_spp, args.geometry_res, args.texel_rays)
-    except Exception as e:  # the scene lives outside the repository (PROBEPLACE_SCENE_PATH)
-        ap.error(f"Crytek Sponza not loaded ({type(e).__name__}: {e}); set PROBEPLACE_SCENE_PATH")
+    b = cv.sponza_cell_bench_or_exit(ap, grid, args.res, args.bake_spp, args.geometry_res, args.texel_rays)
     if args.filter:
         try:
             b.config = dataclasses.replace(b.config, glossy_filter=args.filter)
