@@ -92,7 +92,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from probeplace._core import TEXEL_RAYS, ConfigError, ResourceError, scene_box, write_text_atomic
+from probeplace._core import TEXEL_RAYS, ConfigError, ResourceError, SceneError, scene_box, write_text_atomic
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 from _common import RESULTS, atrium_line, env_info, setup_scene_path, write_result
@@ -257,11 +257,12 @@ def cell_bench_of(ap: argparse.ArgumentParser, args: argparse.Namespace) -> tupl
 
 def sponza_cell_bench_or_exit(ap: argparse.ArgumentParser, *bench_args) -> Bench:
     """:func:`sponza_cell_bench` of ``bench_args``, or exit with status 2 through ``ap.error`` when Sponza
-    is not on the scene path (it lives outside the repository: PROBEPLACE_SCENE_PATH)."""
+    is not on the scene path (it lives outside the repository: PROBEPLACE_SCENE_PATH) or does not load; one
+    line (``load_scene``'s message lists the searched folders on further lines)."""
     try:
         return sponza_cell_bench(*bench_args)
-    except Exception as e:
-        ap.error(f"Crytek Sponza not loaded ({type(e).__name__}: {e}); set PROBEPLACE_SCENE_PATH")
+    except SceneError as e:
+        ap.error(f"Crytek Sponza not loaded ({str(e).splitlines()[0].rstrip(':')}); set PROBEPLACE_SCENE_PATH")
 
 
 class Bench:

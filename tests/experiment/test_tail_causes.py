@@ -78,3 +78,20 @@ def test_bad_arguments_exit_2_before_any_work(argv, capsys):
         _module().main(argv)
     assert e.value.code == 2
     assert "error:" in capsys.readouterr().err
+
+
+def test_a_scene_that_does_not_load_exits_2_in_one_line(monkeypatch, capsys):
+    """The Sponza bench's load failing (here: a scene name on no search path, as a clone without
+    ../shared/scenes meets it) is one line naming the fix, exit 2: load_scene's multi-line message is cut
+    to its first line."""
+    mod = _module()
+    import convergence  # importable once the script ran: it puts benchmarks/ on sys.path
+    from probeplace.scene import load_scene
+
+    monkeypatch.setattr(convergence, "sponza_cell_bench", lambda *a: load_scene("no_such_scene_here"))
+    with pytest.raises(SystemExit) as e:
+        mod.main(["--grid", "8x4x4"])
+    assert e.value.code == 2
+    err = capsys.readouterr().err.strip().splitlines()[-1]
+    assert "Crytek Sponza not loaded (unknown scene 'no_such_scene_here'" in err
+    assert err.endswith("set PROBEPLACE_SCENE_PATH")
