@@ -19,6 +19,17 @@ def experiment_script(name: str):
     return mod
 
 
+def benchmark_module(name: str):
+    """benchmarks/``name``.py imported by name, as the experiments import it (they put benchmarks/ on
+    ``sys.path``): the one module object they use, so a test's monkeypatch reaches them."""
+    import importlib
+    import sys
+
+    if str(ROOT / "benchmarks") not in sys.path:
+        sys.path.insert(0, str(ROOT / "benchmarks"))
+    return importlib.import_module(name)
+
+
 def compose(overrides: list[str], *, hydra_cfg: bool = False):
     """The config experiments/run.py would get for ``overrides`` (with ``hydra`` when ``hydra_cfg``)."""
     from hydra import compose as hydra_compose

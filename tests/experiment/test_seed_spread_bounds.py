@@ -4,21 +4,14 @@ holds the true σ / mean, on normal values with a known coefficient of variation
 
 from __future__ import annotations
 
-import sys
-
 import numpy as np
 import pytest
 
-from ._util import ROOT
+from ._util import benchmark_module
 
 
 def _convergence():
-    """benchmarks/convergence.py, imported as the experiments import it (the benchmarks are scripts)."""
-    if str(ROOT / "benchmarks") not in sys.path:
-        sys.path.insert(0, str(ROOT / "benchmarks"))
-    import convergence
-
-    return convergence
+    return benchmark_module("convergence")
 
 
 @pytest.mark.parametrize("n", [5, 20])

@@ -6,7 +6,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from ._util import experiment_script
+from ._util import benchmark_module, experiment_script
 
 MISS, HIT, UNRESOLVED, NO_RAY = 0, 1, 2, -1
 
@@ -84,13 +84,12 @@ def test_a_scene_that_does_not_load_exits_2_in_one_line(monkeypatch, capsys):
     """The Sponza bench's load failing (here: a scene name on no search path, as a clone without
     ../shared/scenes meets it) is one line naming the fix, exit 2: load_scene's multi-line message is cut
     to its first line."""
-    mod = _module()
-    import convergence  # importable once the script ran: it puts benchmarks/ on sys.path
     from probeplace.scene import load_scene
 
+    convergence = benchmark_module("convergence")
     monkeypatch.setattr(convergence, "sponza_cell_bench", lambda *a: load_scene("no_such_scene_here"))
     with pytest.raises(SystemExit) as e:
-        mod.main(["--grid", "8x4x4"])
+        _module().main(["--grid", "8x4x4"])
     assert e.value.code == 2
     err = capsys.readouterr().err.strip().splitlines()[-1]
     assert "Crytek Sponza not loaded (unknown scene 'no_such_scene_here'" in err
