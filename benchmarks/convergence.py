@@ -1,11 +1,18 @@
 """Convergence of the probe error with probe density and map resolution, and what the error is made of.
 
-    .venv/bin/python benchmarks/convergence.py [--quick] [--scenes cornell sponza]
-        [--bake-spp N | scene:N ...] [--n-sub N] [--texel-rays surfel|jittered] [--res 16 32 64]
-        [--grids 4x4x4 8x4x4] [--seeds 3] [--fresh] [--geometry-res N] [--backend jax|mitsuba]
-        [--no-auto] [--no-costs]
+    .venv/bin/python benchmarks/convergence.py [--plan papers|sweep|quick] [--quick]
+        [--scenes cornell sponza] [--bake-spp N | scene:N ...] [--n-sub N] [--texel-rays surfel|jittered]
+        [--res 16 32 64] [--grids 4x4x4 8x4x4] [--seeds N] [--fresh] [--geometry-res N]
+        [--backend jax|mitsuba] [--no-auto] [--no-costs]
 
-For each scene (Cornell box "front", Crytek Sponza "CameraMain"), uniform grids of increasing density
+What a run measures, where its options do not say, is its plan (``PLANS``). The default, ``papers``, is
+issue 33's instrument at the papers' resolution: Cornell 4×4×4 at 128² radiance and Sponza 8×4×4 and
+16×8×8 at 64², all with 512² geometry maps, 32 bake paths, 512 glossy rays a Sponza pixel and twenty seeds
+of the 8×4×4 grid; about 3 h on 2 cores from an empty cache, and a rerun reuses every cell already done.
+``--plan sweep`` is issue 16's grids × radiance resolutions (16–128) with geometry maps twice as fine;
+``--quick`` (``--plan quick``) a few minutes of small cells.
+
+For each scene (Cornell box "front", Crytek Sponza "CameraMain"), uniform grids (by density in the sweep)
 (cell centres of the scene box) × radiance-map resolutions, baked with the path tracer
 (``probes.path_traced_radiance``, ``--bake-spp`` paths × ``--n-sub``² rays per texel along its surfel's
 direction, or jittered over it (``--texel-rays``, ``probes.BakeConfig.texel_rays``; the surfel's ray by
@@ -38,15 +45,18 @@ run per cell. Each cell's JSON is cached atomically in ``benchmarks/results/conv
 name carries a hash of the settings, not of the code) and skipped when present; ``--fresh`` recomputes
 each once (do so after changing the code).
 
-Targets (issue 16), each reported as ``targets: {key: {value, target, met}}``:
+Targets (issue 16), each reported as ``targets: {key: {value, target, met}}`` (the seeds' spread also with
+``upper95``, its one-sided 95 % bound; an estimate under its target whose bound is not is undecided: ``met``
+null, with ``why``):
 ``cornell_4x4x4_r64_mse_over_floor`` ≤ 1.3 (glossy MSE ÷ CRN noise floor); on Sponza at 16×8×8 × 64²
 ``_agreement`` ≥ 0.95, ``_unresolved`` ≤ 0.03, ``_trace_excess`` ≤ 0.2, ``_glossy_over_black`` and
 ``_diffuse_over_black`` < 1; ``sponza_grid128_glossy_over_black`` < 1 (8×4×4, 128 probes) and
 ``sponza_grid128_seed_cv`` ≤ 0.10 (coefficient of variation, population σ / mean, of the glossy MSE over
-``--seeds`` bake + evaluation seeds). Keys of cells not run (``--quick``, or Sponza absent) are null with
-a reason in ``skipped``. Last stdout line: the JSON, also written to benchmarks/results/convergence.json
-(``convergence_geometry<N>.json`` with ``--geometry-res N``: geometry maps at least N², radiance as given).
-Issue 33 (the instrument at the papers' resolution, run with ``--geometry-res 512``): every cell's figures
+``--seeds`` bake + evaluation seeds). Keys of cells not run (left out by the plan or the options, or Sponza
+absent) are null with a reason in ``skipped``. Last stdout line: the JSON, also written to
+benchmarks/results/convergence_geometry<N>.json when the geometry maps are at least N² (the papers plan:
+``convergence_geometry512.json``), else to ``convergence.json`` (the sweep and quick plans).
+Issue 33 (the instrument at the papers' resolution, the default plan): every cell's figures
 also under ``{scene}_{grid}_g{G}_…`` (G the geometry maps' resolution); targets
 ``cornell_4x4x4_g512_mse_over_floor`` ≤ 1.3, ``sponza_16x8x8_g512_agreement`` ≥ 0.95, ``_unresolved_seen``
 ≤ 0.03 (null with the reason when the cell did not run), ``_trace_excess`` ≤ 0.2, ``_glossy_over_black`` < 1,
@@ -102,14 +112,56 @@ SCENES = {
     "cornell": {"name": "cornell_box", "view": "front"},
     "sponza": {"name": "crytek_sponza", "view": "CameraMain"},
 }
-FULL = {
-    "cornell": {"grids": ["2x2x2", "3x3x3", "4x4x4", "6x6x6"], "res": [16, 32, 64, 128], "eval": (32, 32)},
-    "sponza": {"grids": ["4x2x2", "8x4x4", "16x8x8"], "res": [16, 32, 64], "eval": (64, 48)},
-}
-QUICK = {
-    "cornell": {"grids": ["2x2x2", "4x4x4"], "res": [16, 64], "eval": (24, 24)},
-    "sponza": {"grids": ["8x4x4"], "res": [16], "eval": (48, 36)},
-}
+#: What a run measures where its options do not say (``--plan``; ``--quick`` is ``--plan quick``): per scene
+#: the grids, radiance resolutions, evaluation image (width, height) and sample counts (bake paths a texel
+#: ray, glossy rays a pixel, CRN reference paths a glossy ray); for the run the geometry maps' resolution
+#: (None: ``--geometry-factor`` × the radiance's), the 8×4×4 grid's seeds and radiance resolution, and the
+#: reference's paths a pixel. A per-scene option (``--grids sponza:16x8x8``) replaces that scene's value only.
+PLANS = {
+    # Issue 33, the default: the instrument at the papers' resolution, 512² geometry maps (Wang 2019 §5),
+    # with the counts that decide its targets: 32 bake paths (Cornell's floor ratio at 128² radiance), 512
+    # glossy rays a pixel and twenty seeds (the seed spread's one-sided bound; experiments/README.md §2).
+    # About 3 h on 2 cores from an empty cache, most of it the twenty seeds (~7.5 min each); every cell is
+    # cached as it finishes, so a stopped run resumes where it stopped.
+    "papers": {
+        "cornell": {
+            "grids": ["4x4x4"], "res": [128], "eval": (32, 32),
+            "bake_spp": 32, "glossy_spp": 16, "glossy_ref_spp": 4,
+        },
+        "sponza": {
+            "grids": ["8x4x4", "16x8x8"], "res": [64], "eval": (64, 48),
+            "bake_spp": 32, "glossy_spp": 512, "glossy_ref_spp": 4,
+        },
+        "geometry_res": 512, "seeds": 20, "grid128_res": 64, "eval_spp": 32,
+    },
+    # Issue 16: the error against probe density × radiance resolution, geometry maps twice the radiance's.
+    # Its counts are also the cells' of the experiments that rerun one (sponza_cell_bench, paper_check.py).
+    "sweep": {
+        "cornell": {
+            "grids": ["2x2x2", "3x3x3", "4x4x4", "6x6x6"], "res": [16, 32, 64, 128], "eval": (32, 32),
+            "bake_spp": 8, "glossy_spp": 16, "glossy_ref_spp": 4,
+        },
+        "sponza": {
+            "grids": ["4x2x2", "8x4x4", "16x8x8"], "res": [16, 32, 64], "eval": (64, 48),
+            "bake_spp": 8, "glossy_spp": 16, "glossy_ref_spp": 4,
+        },
+        "geometry_res": None, "seeds": 3, "grid128_res": 64, "eval_spp": 32,
+    },
+    # A few minutes: small grids, resolutions, images and counts.
+    "quick": {
+        "cornell": {
+            "grids": ["2x2x2", "4x4x4"], "res": [16, 64], "eval": (24, 24),
+            "bake_spp": 4, "glossy_spp": 16, "glossy_ref_spp": 4,
+        },
+        "sponza": {
+            "grids": ["8x4x4"], "res": [16], "eval": (48, 36),
+            "bake_spp": 4, "glossy_spp": 16, "glossy_ref_spp": 4,
+        },
+        "geometry_res": None, "seeds": 3, "grid128_res": 16, "eval_spp": 16,
+    },
+}  # fmt: skip
+#: The options a plan fills in for the whole run (each None on the command line unless given).
+RUN_PLANNED = ("geometry_res", "seeds", "grid128_res", "eval_spp")
 #: (key suffix, target, comparison) of the issue's targets.
 TARGETS = {
     "cornell_4x4x4_r64_mse_over_floor": (1.3, "<="),
@@ -205,17 +257,18 @@ def sponza_cell_bench(
     glossy_spp: int | None = None,
 ) -> Bench:
     """The Sponza :class:`Bench` of this benchmark's ``grid`` × ``res`` cell at these settings, the rest its
-    defaults (for the experiments that rerun a cell: experiments/tail_causes.py, spread_parts.py,
-    ray_allocation.py). Raises what ``load_scene`` raises when the scene is not on the scene path."""
+    defaults and the counts not given the ``sweep`` plan's (for the experiments that rerun a cell:
+    experiments/tail_causes.py, spread_parts.py, ray_allocation.py). Raises what ``load_scene`` raises
+    when the scene is not on the scene path."""
     setup_scene_path()
-    argv = ["--scenes", "sponza", "--grids", f"sponza:{grid}", "--res", f"sponza:{res}"]
+    argv = ["--plan", "sweep", "--scenes", "sponza", "--grids", f"sponza:{grid}", "--res", f"sponza:{res}"]
     argv += ["--bake-spp", f"sponza:{bake_spp}", "--geometry-res", str(geometry_res)]
     argv += ["--texel-rays", texel_rays]
     if glossy_ref_spp is not None:
         argv += ["--glossy-ref-spp", f"sponza:{glossy_ref_spp}"]
     if glossy_spp is not None:
         argv += ["--glossy-spp", f"sponza:{glossy_spp}"]
-    return Bench("sponza", parse_args(argv), FULL["sponza"]["eval"])
+    return Bench("sponza", parse_args(argv))
 
 
 def add_cell_arguments(ap: argparse.ArgumentParser, *, seeds: int, bake_spp: int, glossy_spp: int) -> None:
@@ -262,20 +315,23 @@ def sponza_cell_bench_or_exit(ap: argparse.ArgumentParser, *bench_args) -> Bench
     try:
         return sponza_cell_bench(*bench_args)
     except SceneError as e:
-        ap.error(f"Crytek Sponza not loaded ({str(e).splitlines()[0].rstrip(':')}); set PROBEPLACE_SCENE_PATH")
+        ap.error(
+            f"Crytek Sponza not loaded ({str(e).splitlines()[0].rstrip(':')}); set PROBEPLACE_SCENE_PATH"
+        )
 
 
 class Bench:
     """One scene's shared state: scene, caster, evaluation config and the per-seed shared steps."""
 
-    def __init__(self, key: str, args, size):
+    def __init__(self, key: str, args):
         from probeplace.evaluate import EvalConfig
         from probeplace.probes import TraceConfig
         from probeplace.render import default_caster
         from probeplace.scene import load_scene
 
         self.key, self.args = key, args
-        self.bake_spp = (scene_values(args.bake_spp, key, int) or [4 if args.quick else 8])[0]
+        self.plan = scene_plan(args, key)
+        self.bake_spp = self.plan["bake_spp"]
         self.scene = load_scene(SCENES[key]["name"])
         self.view = SCENES[key]["view"]
         self.caster = default_caster(self.scene)
@@ -284,11 +340,11 @@ class Bench:
             {"fallback_radius": args.fallback_radius} if args.fallback_radius is not None else {}
         )
         self.config = EvalConfig(
-            width=size[0],
-            height=size[1],
+            width=self.plan["eval"][0],
+            height=self.plan["eval"][1],
             spp=args.eval_spp,
-            glossy_spp=(scene_values(args.glossy_spp, key, int) or [16])[0],
-            glossy_ref_spp=(scene_values(args.glossy_ref_spp, key, int) or [4])[0],
+            glossy_spp=self.plan["glossy_spp"],
+            glossy_ref_spp=self.plan["glossy_ref_spp"],
             max_depth=args.max_depth,
             timing_repeats=args.timing_repeats,
             backend=args.backend,
@@ -351,18 +407,13 @@ class Bench:
             self.shared[key] = (ref, prim, crn, time.perf_counter() - t0)
         return self.shared[key]
 
-    def geometry_res(self, res: int) -> int:
-        """The geometry maps' resolution of a cell with radiance maps at ``res``."""
-        a = self.args
-        return max(res, a.geometry_res) if a.geometry_res else a.geometry_factor * res
-
     def bake(self, pos: np.ndarray, res: int, seed: int):
         """Bake the probes at ``pos`` as every cell is baked: (probes, bake times)."""
         from probeplace._core import ProbeSet
         from probeplace.probes import BakeConfig, bake_probes, path_traced_radiance
 
         a = self.args
-        geo = self.geometry_res(res)
+        geo = cell_geometry_res(a, res)
         # ~2^18 radiance rays and ~2^21 geometry rays a batch (at 512² geometry: 8 probes)
         per_batch = int(max(1, min(len(pos), (1 << 18) // (res * res * a.n_sub**2), (1 << 21) // geo**2)))
         cfg = BakeConfig(
@@ -600,17 +651,18 @@ def report_cell(
     return c
 
 
-def run_scene(key: str, args, plan: dict, result: dict) -> None:
+def run_scene(key: str, args, result: dict) -> None:
     try:
-        b = Bench(key, args, plan["eval"])
+        b = Bench(key, args)
     except Exception as e:  # the scene lives outside the repository (PROBEPLACE_SCENE_PATH)
         result["skipped"][key] = f"{SCENES[key]['name']} not loaded: {type(e).__name__}: {e}"
         log(result["skipped"][key])
         return
+    plan = b.plan
     cells = {}
     for grid in plan["grids"]:
         for res in plan["res"]:
-            geo = b.geometry_res(res)
+            geo = cell_geometry_res(args, res)
             try:
                 c = b.cell(grid, res, 0)
             except ResourceError as e:  # e.g. 1,024 probes at 1024² on a small machine: the other cells run
@@ -620,12 +672,12 @@ def run_scene(key: str, args, plan: dict, result: dict) -> None:
             cells[f"{grid}_r{res}"] = report_cell(result, f"{key}_{grid}", res, geo, c)
     if key == "sponza" and args.no_auto:
         for f in AUTO_FIGURES:
-            k = f"sponza_{AUTO}_g{b.geometry_res(max(plan['res']))}_{f}"
+            k = f"sponza_{AUTO}_g{cell_geometry_res(args, max(plan['res']))}_{f}"
             result[k], result["skipped"][k] = None, "--no-auto"
     elif key == "sponza":  # the automatic skeleton set, at the finest radiance resolution of the run
         res = max(plan["res"])
         cells[f"{AUTO}_r{res}"] = report_cell(
-            result, f"{key}_{AUTO}", res, b.geometry_res(res), b.cell(AUTO, res, 0)
+            result, f"{key}_{AUTO}", res, cell_geometry_res(args, res), b.cell(AUTO, res, 0)
         )
     result["cells"][key] = cells
     result["shared_steps_s"][key] = {str(s): v[3] for s, v in b.shared.items()}
@@ -731,12 +783,29 @@ def instrument_costs(args, result: dict, n: int = 128) -> None:
     )
 
 
+#: Targets "at most" whose estimate comes from few samples, with the key of its one-sided 95 % upper bound:
+#: an estimate under the target counts as met only when the bound is too.
+UPPER_BOUNDS = dict.fromkeys(
+    ("sponza_grid_seed_spread", "sponza_grid128_seed_cv"), "sponza_grid_seed_spread_upper95"
+)
+
+
 def targets(result: dict) -> dict:
+    """Each target's value and whether it is met: null when the value is, or when an estimate meets an
+    "at most" target that its one-sided 95 % bound (``UPPER_BOUNDS``) does not (undecided: ``why``)."""
     out = {}
     for k, (t, op) in TARGETS.items():
         v = result.get(k)
         met = None if v is None else {"<=": v <= t, ">=": v >= t, "<": v < t}[op]
         out[k] = {"value": v, "target": f"{op} {t}", "met": met}
+        bound = result.get(UPPER_BOUNDS.get(k, ""))
+        if met and bound is not None:
+            out[k]["upper95"] = bound
+            if bound > t:
+                out[k]["met"] = None
+                out[k]["why"] = (
+                    f"undecided: the one-sided 95 % bound {bound:.3g} is above {t}; run more seeds"
+                )
     return out
 
 
@@ -751,10 +820,39 @@ def scene_values(values: list[str] | None, key: str, kind) -> list | None:
     return out or None
 
 
+def cell_geometry_res(args, res: int) -> int:
+    """The geometry maps' resolution of a cell with radiance maps at ``res``."""
+    return max(res, args.geometry_res) if args.geometry_res else args.geometry_factor * res
+
+
+def scene_plan(args, key: str) -> dict:
+    """Scene ``key``'s grids, radiance resolutions, evaluation image and sample counts: the run's plan
+    (:data:`PLANS`) with the per-scene options given on the command line put over it."""
+    plan = dict(PLANS[args.plan][key])
+    for name, kind in (("grids", str), ("res", int)):
+        plan[name] = scene_values(getattr(args, name), key, kind) or plan[name]
+    for name in ("bake_spp", "glossy_spp", "glossy_ref_spp"):
+        plan[name] = (scene_values(getattr(args, name), key, int) or [plan[name]])[0]
+    size = scene_values(args.eval_size, key, str)
+    if size:  # e.g. sponza:128x96: the evaluation image's pixels (the seed spread's sample, issue 33)
+        w, _, h = size[0].partition("x")
+        plan["eval"] = (int(w), int(h))
+    return plan
+
+
 def parse_args(argv=None) -> argparse.Namespace:
-    """The benchmark's options, defaults filled in (also what ``paper_check.py`` builds its cells with)."""
+    """The benchmark's options, the run-wide ones its plan's where not given (also what ``paper_check.py``
+    builds its cells with)."""
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
-    ap.add_argument("--quick", action="store_true", help="small grids, resolutions and images")
+    ap.add_argument(
+        "--plan",
+        choices=list(PLANS),
+        default=None,
+        help="what to measure where the options below do not say (PLANS): papers (default; issue 33's "
+        "cells at 512² geometry and the counts that decide its targets, about 3 h on 2 cores from an empty "
+        "cache, resumable), sweep (issue 16's grids × radiance resolutions) or quick",
+    )
+    ap.add_argument("--quick", action="store_true", help="--plan quick: small grids, resolutions and images")
     ap.add_argument("--scenes", nargs="+", default=["cornell", "sponza"], choices=list(SCENES))
     ap.add_argument(
         "--grids", nargs="+", default=None, help="grids, e.g. 4x4x4 (all scenes) or sponza:16x8x8"
@@ -766,7 +864,8 @@ def parse_args(argv=None) -> argparse.Namespace:
         "--bake-spp",
         nargs="+",
         default=None,
-        help="paths per texel ray, e.g. 8 (all scenes) or cornell:32 (default 8; quick 4)",
+        help="paths per texel ray, e.g. 8 (all scenes) or cornell:32 (default the plan's: papers 32, "
+        "sweep 8, quick 4)",
     )
     ap.add_argument("--n-sub", type=int, default=1, help="n_sub² rays per radiance texel")
     ap.add_argument(
@@ -778,39 +877,48 @@ def parse_args(argv=None) -> argparse.Namespace:
         "Sponza grid cell and seed, issue 33) or jittered over the texel (the library's default)",
     )
     ap.add_argument("--max-depth", type=int, default=4, help="evaluation path depth (bake: − 1)")
-    ap.add_argument("--eval-spp", type=int, default=None, help="reference paths/pixel (default 32; quick 16)")
+    ap.add_argument(
+        "--eval-spp", type=int, default=None, help="reference paths/pixel (default the plan's: 32; quick 16)"
+    )
     ap.add_argument(
         "--glossy-spp",
         nargs="+",
         default=None,
-        help="glossy rays per pixel, e.g. 16 (all scenes) or sponza:512 (default 16, for speed; the seeds' "
-        "raw spread falls as the rays grow: on Sponza 8x4x4 at 512² geometry, 512 rays at 4 reference paths "
-        "a ray read 3.5 %% on twenty seeds, for 156-200 s of shading a frame on 2 cores; "
-        "experiments/README.md §2)",
+        help="glossy rays per pixel, e.g. 16 (all scenes) or sponza:512 (default the plan's: 16, papers' "
+        "Sponza 512; the seeds' raw spread falls as the rays grow: on Sponza 8x4x4 at 512² geometry, 512 "
+        "rays at 4 reference paths a ray read 3.5 %% on twenty seeds, for 156-200 s of shading a frame on 2 "
+        "cores; experiments/README.md §2)",
     )
     ap.add_argument(
         "--glossy-ref-spp",
         nargs="+",
         default=None,
-        help="CRN reference paths per glossy ray, e.g. 4 (all scenes) or sponza:16 (default 4; Cornell's "
-        "target divides by this reference's noise floor)",
+        help="CRN reference paths per glossy ray, e.g. 4 (all scenes) or sponza:16 (default the plan's: 4; "
+        "Cornell's target divides by this reference's noise floor)",
     )
     ap.add_argument(
         "--eval-size",
         nargs="+",
         default=None,
-        help="evaluation image size, e.g. sponza:128x96 (default: Cornell 32x32, Sponza 64x48; "
+        help="evaluation image size, e.g. sponza:128x96 (default the plan's: Cornell 32x32, Sponza 64x48; "
         "quick smaller)",
     )
     ap.add_argument("--timing-repeats", type=int, default=1)
-    ap.add_argument("--seeds", type=int, default=3, help="bake + evaluation seeds of the 128-probe grid")
+    ap.add_argument(
+        "--seeds",
+        type=int,
+        default=None,
+        help="bake + evaluation seeds of the 128-probe grid (default the plan's: papers 20, else 3)",
+    )
     ap.add_argument(
         "--spread-fixed-rays",
         action="store_true",
         help="also run the 128-probe grid's seeds on seed 0's evaluation rays (the bake and reference paths "
         "still each seed's): sponza_grid_seed_spread_fixed_rays, the spread the sample counts control",
     )
-    ap.add_argument("--grid128-res", type=int, default=None, help="its map resolution (default 64; quick 16)")
+    ap.add_argument(
+        "--grid128-res", type=int, default=None, help="its map resolution (default the plan's: 64; quick 16)"
+    )
     ap.add_argument("--fresh", action="store_true", help="recompute cached cells")
     ap.add_argument(
         "--no-auto",
@@ -833,7 +941,8 @@ def parse_args(argv=None) -> argparse.Namespace:
         "--geometry-res",
         type=int,
         default=None,
-        help="geometry maps at least this fine (BakeConfig.geometry_res; overrides --geometry-factor)",
+        help="geometry maps at least this fine (BakeConfig.geometry_res; default the plan's: papers 512, "
+        "else --geometry-factor × the radiance's)",
     )
     ap.add_argument(
         "--trace-engine",
@@ -873,34 +982,29 @@ def parse_args(argv=None) -> argparse.Namespace:
             TraceConfig(fallback_radius=args.fallback_radius)
         except ConfigError as e:
             ap.error(f"--fallback-radius: {e}")
-    q = args.quick
-    args.eval_spp = args.eval_spp or (16 if q else 32)
-    args.grid128_res = args.grid128_res or (16 if q else 64)
+    if args.quick and args.plan not in (None, "quick"):
+        ap.error(f"--quick is --plan quick: give one of --quick and --plan {args.plan}")
+    args.plan = "quick" if args.quick else args.plan or "papers"
+    for name in RUN_PLANNED:
+        if getattr(args, name) is None:
+            setattr(args, name, PLANS[args.plan][name])
     return args
 
 
 def main(argv=None) -> dict:
     args = parse_args(argv)
-    q = args.quick
     setup_scene_path()
     t_all = time.perf_counter()
     result: dict = {
         "env": env_info(),
-        "quick": q,
+        "plan": args.plan,
         "cells": {},
         "settings": {},
         "skipped": {},
         "shared_steps_s": {},
     }
     for key in args.scenes:
-        plan = dict((QUICK if q else FULL)[key])
-        plan["grids"] = scene_values(args.grids, key, str) or plan["grids"]
-        plan["res"] = scene_values(args.res, key, int) or plan["res"]
-        size = scene_values(args.eval_size, key, str)
-        if size:  # e.g. sponza:128x96: the evaluation image's pixels (the seed spread's sample, issue 33)
-            w, _, h = size[0].partition("x")
-            plan["eval"] = (int(w), int(h))
-        run_scene(key, args, plan, result)
+        run_scene(key, args, result)
     if "sponza" in args.scenes and not args.no_costs:
         instrument_costs(args, result)
     for k, why in NOT_MEASURED.items():
@@ -910,7 +1014,7 @@ def main(argv=None) -> dict:
         if k not in result:
             result[k] = None
             result["skipped"].setdefault(
-                k, "cell not run (--quick, --grids/--res/--geometry-res or the scene is absent)"
+                k, "cell not run (--plan, --grids/--res/--geometry-res or the scene is absent)"
             )
     result["targets"] = targets(result)
     result["total_s"] = time.perf_counter() - t_all

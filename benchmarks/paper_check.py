@@ -234,8 +234,9 @@ def study(rows: list, args, coverage: str) -> None:
     import convergence as cv
     from probeplace.experiment import seed_paired_ratio
 
-    bargs = cv.parse_args(["--geometry-res", str(args.geometry_res)])
-    bench = cv.Bench("sponza", bargs, cv.FULL["sponza"]["eval"])
+    # the sweep plan's counts (8 bake paths, 16 glossy rays a pixel): what this study's cached cells hold
+    bargs = cv.parse_args(["--plan", "sweep", "--geometry-res", str(args.geometry_res)])
+    bench = cv.Bench("sponza", bargs)
     skel = placed_positions(bench.scene, 54, coverage)
     cells: dict[str, list] = {"skeleton54": [], "6x3x3": [], "8x4x4": []}
     for s in range(args.seeds):

@@ -1,0 +1,104 @@
+"""benchmarks/convergence.py's plans (``PLANS``): a bare run measures every figure issue 33 names (its
+must-show command is the bare ``benchmarks/convergence.py``), ``--plan sweep`` every figure issue 16 names,
+and a per-scene option replaces its own scene's value only. The benchmark's own ``main`` runs with its
+scene work replaced by a stand-in that records the cells asked for; the oracle is the issues' key lists
+(``TARGETS``, ``REPORTED``) and the cell each key's name says it comes from."""
+
+from __future__ import annotations
+
+import re
+from collections import defaultdict
+
+import pytest
+
+from ._util import benchmark_module
+
+
+@pytest.fixture
+def convergence(monkeypatch):
+    cv = benchmark_module("convergence")
+    asked: dict = {"cells": [], "costs": []}
+
+    class StandIn:
+        """A scene's bench that loads nothing and records the cells asked for."""
+
+        def __init__(self, key, args):
+            self.key, self.plan, self.shared = key, cv.scene_plan(args, key), {}
+
+        def cell(self, grid, res, seed, positions=None, ray_seed=None):
+            asked["cells"].append((self.key, grid, res, seed))
+            # a real cell's figures (summarise's, of metrics that are all 1, and its times and counts)
+            # (the top 1 % of pixels hold 1 % of the error: the bulk's spread needs a bulk)
+            figures = cv.summarise(defaultdict(lambda: 1.0)) | {"top_percent_share_glossy": 0.01}
+            return dict.fromkeys(cv.CELL_FIGURES, 1.0) | figures
+
+        def settings(self):
+            return {}
+
+    def costs(args, result):  # the set-up costs' keys as instrument_costs names them, at its resolution
+        asked["costs"].append(args.geometry_res)
+        geo = args.geometry_res or 512
+        for k in (f"make_tracer_128_g{geo}_s", f"geometry_bake_128_g{geo}_s"):
+            result[k] = 1.0
+
+    monkeypatch.setattr(cv, "Bench", StandIn)
+    monkeypatch.setattr(cv, "instrument_costs", costs)
+    monkeypatch.setattr(cv, "setup_scene_path", lambda: None)
+    monkeypatch.setattr(cv, "write_result", lambda name, result: asked.setdefault("written", name))
+    monkeypatch.setattr(cv, "env_info", lambda: {})
+    return cv, asked
+
+
+def _issue33(key: str) -> bool:
+    """Whether ``key`` is one of issue 33's figures (the others in TARGETS are issue 16's)."""
+    return "_g512_" in key or key.startswith("sponza_grid_seed_spread") or key.endswith("_128_g512_s")
+
+
+def test_a_bare_run_measures_every_figure_of_issue_33(convergence):
+    cv, asked = convergence
+    result = cv.main([])
+    wanted = [k for k in (*cv.TARGETS, *cv.REPORTED) if _issue33(k)]
+    wanted = [k for k in wanted if not k.startswith("sponza_grid_seed_spread_fixed_rays")]  # opt-in
+    assert len(wanted) >= 12
+    assert [k for k in wanted if result[k] is None] == []
+    assert result["plan"] == "papers" and asked["written"] == "convergence_geometry512"
+    # each cell key's grid was run, at the geometry its name gives, and the 8×4×4 grid on 20 seeds
+    for k in wanted:
+        m = re.match(r"(cornell|sponza)_(\d+x\d+x\d+)_g(\d+)_", k)
+        if m:
+            scene, grid, geo = m[1], m[2], int(m[3])
+            assert any(
+                c[0] == scene and c[1] == grid and cv.cell_geometry_res(cv.parse_args([]), c[2]) == geo
+                for c in asked["cells"]
+            ), k
+    assert {c[3] for c in asked["cells"] if c[:2] == ("sponza", "8x4x4")} == set(range(20))
+    assert asked["costs"] == [512]
+
+
+def test_the_sweep_plan_measures_every_figure_of_issue_16(convergence):
+    cv, _ = convergence
+    result = cv.main(["--plan", "sweep", "--no-costs"])
+    wanted = [k for k in cv.TARGETS if not _issue33(k)]
+    assert len(wanted) >= 8
+    assert [k for k in wanted if result[k] is None] == []
+    assert result["sponza_16x8x8_g128_agreement"] == 1.0  # geometry twice the 64² radiance
+
+
+def test_a_scene_option_replaces_that_scene_value_only():
+    cv = benchmark_module("convergence")
+    args = cv.parse_args(["--grids", "sponza:16x8x8", "--bake-spp", "sponza:8", "--glossy-spp", "64"])
+    sponza, cornell = cv.scene_plan(args, "sponza"), cv.scene_plan(args, "cornell")
+    assert (sponza["grids"], sponza["bake_spp"], sponza["glossy_spp"]) == (["16x8x8"], 8, 64)
+    assert (cornell["grids"], cornell["bake_spp"], cornell["glossy_spp"]) == (["4x4x4"], 32, 64)
+    assert (args.geometry_res, args.seeds) == (512, 20)
+    assert cv.parse_args(["--seeds", "5", "--geometry-res", "1024"]).seeds == 5
+
+
+def test_quick_and_another_plan_are_refused_in_one_line(capsys):
+    cv = benchmark_module("convergence")
+    with pytest.raises(SystemExit) as e:
+        cv.parse_args(["--quick", "--plan", "papers"])
+    assert e.value.code == 2
+    last = capsys.readouterr().err.strip().splitlines()[-1]
+    assert "--quick is --plan quick" in last
+    assert cv.parse_args(["--quick"]).plan == "quick"
