@@ -12,8 +12,8 @@ of the 8×4×4 grid; about 3 h on 2 cores from an empty cache, and a rerun reuse
 ``--plan sweep`` is issue 16's grids × radiance resolutions (16–128) with geometry maps twice as fine;
 ``--quick`` (``--plan quick``) a few minutes of small cells.
 
-For each scene (Cornell box "front", Crytek Sponza "CameraMain"), uniform grids (by density in the sweep)
-(cell centres of the scene box) × radiance-map resolutions, baked with the path tracer
+For each scene (Cornell box "front", Crytek Sponza "CameraMain"), uniform grids (cell centres of the scene
+box; by density in the sweep) × radiance-map resolutions, baked with the path tracer
 (``probes.path_traced_radiance``, ``--bake-spp`` paths × ``--n-sub``² rays per texel along its surfel's
 direction, or jittered over it (``--texel-rays``, ``probes.BakeConfig.texel_rays``; the surfel's ray by
 default: one ray a texel reads better there than one jittered ray, experiments/README.md §2), path depth
@@ -988,6 +988,8 @@ def parse_args(argv=None) -> argparse.Namespace:
     for name in RUN_PLANNED:
         if getattr(args, name) is None:
             setattr(args, name, PLANS[args.plan][name])
+    if args.seeds < 1:  # the 8×4×4 grid's figures are its seed 0's
+        ap.error(f"--seeds {args.seeds}: want at least 1 (2 or more for the seeds' spread)")
     return args
 
 

@@ -18,8 +18,8 @@ Temple; times are this CPU's against the papers' GPUs (GTX 1060, GeForce 1080), 
 Probe counts use the placement ``skeleton+medial`` (Wang's medial-axis seeds) with the automatic budget
 and coverage counted over what the scene's view cameras see (``FitnessConfig.coverage="views"``, the
 playable space; ``--coverage reachable`` for the old rule, also reported as its own row). The equal-count
-rows bake and evaluate at the instrument's default maps (512² geometry, 64² radiance, 8 bake paths, 32
-reference paths, CameraMain at 64×48) through ``convergence.py``'s cells, over ``--seeds`` seeds paired
+rows bake and evaluate at 512² geometry, 64² radiance, 8 bake paths, 32 reference paths, CameraMain at
+64×48 (``convergence.py``'s sweep counts) through its cells, over ``--seeds`` seeds paired
 by seed (same reference): the ratios' geometric mean and a t 95 % interval of the log ratios. The skeleton
 at 54 is placed once (seed 0): past the automatic count, ``place`` fills at the farthest valid points.
 

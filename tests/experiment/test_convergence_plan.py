@@ -94,11 +94,14 @@ def test_a_scene_option_replaces_that_scene_value_only():
     assert cv.parse_args(["--seeds", "5", "--geometry-res", "1024"]).seeds == 5
 
 
-def test_quick_and_another_plan_are_refused_in_one_line(capsys):
+@pytest.mark.parametrize(
+    ("argv", "says"),
+    [(["--quick", "--plan", "papers"], "--quick is --plan quick"), (["--seeds", "0"], "--seeds 0")],
+)
+def test_a_bad_plan_or_seed_count_is_refused_in_one_line(argv, says, capsys):
     cv = benchmark_module("convergence")
     with pytest.raises(SystemExit) as e:
-        cv.parse_args(["--quick", "--plan", "papers"])
+        cv.parse_args(argv)
     assert e.value.code == 2
-    last = capsys.readouterr().err.strip().splitlines()[-1]
-    assert "--quick is --plan quick" in last
+    assert says in capsys.readouterr().err.strip().splitlines()[-1]
     assert cv.parse_args(["--quick"]).plan == "quick"
