@@ -11,6 +11,10 @@ Embree 1 thread). ``hiz_vs_two_level_steps`` is mean march steps of hi-Z over tw
 (Wang 2019 §4.2 reports ≥ 30% fewer steps, i.e. a ratio ≤ 0.7, at 512² maps);
 ``hiz_vs_two_level_steps_r128`` / ``_r256`` are the same ratio with geometry maps baked at 128² / 256²
 (Cornell 4×4×4; ``sponza_…`` the Sponza 8×4×4 grid), from ``hierarchy_steps``.
+``sponza_march_s_r512_over_r128`` (issue 33: at most about 2) and ``sponza_march_steps_r512_over_r128``:
+the shading's trace (hi-Z, wavefront engine) of the same rays through the Sponza 8×4×4 grid's geometry
+maps at 512² over 128², time (median of interleaved repeats, compile apart) and mean march steps
+(``march_cost``; details in ``sponza_march_cost``).
 
 ``cornell_glossy_mse`` / ``cornell_glossy_noise_floor``: ``probeplace.evaluate.evaluate`` on the Cornell box
 "front" view (4×4×4 grid baked with the path tracer, light-field shading; image, spp and map resolution in
@@ -98,14 +102,23 @@ def shading_rays(scene, caster, n, seed):
     return (p + 1e-4 * size * nrm).astype(np.float32), _unit(d).astype(np.float32)
 
 
-def bake_grid(scene, dims, res, caster):
+def bake_grid(scene, dims, res, caster, radiance_res=None):
+    """The grid's probes baked with geometry maps at ``res``² and a constant radiance (at ``res``² too
+    unless ``radiance_res`` says: the trace reads only the geometry maps); (probes, bake seconds)."""
     pos = grid_positions(scene, dims)
     probes = ProbeSet(pos_world=jnp.asarray(pos, jnp.float32), active=jnp.ones(len(pos), bool))
 
     def const(o, d, k):
         return jnp.full((o.shape[0], 3), 0.5, o.dtype), jnp.zeros((o.shape[0], 3), o.dtype)
 
-    cfg = BakeConfig(radiance_res=res, irradiance_res=4, moments_res=4, n_sub=1, progress=False)
+    cfg = BakeConfig(
+        radiance_res=radiance_res or res,
+        geometry_res=res,
+        irradiance_res=4,
+        moments_res=4,
+        n_sub=1,
+        progress=False,
+    )
     t0 = time.perf_counter()
     lf = bake_probes(scene, probes, caster=caster, radiance_fn=const, key=jax.random.key(0), config=cfg)
     return lf, time.perf_counter() - t0
@@ -205,6 +218,45 @@ def hierarchy_steps(scene, dims, resolutions, n_rays, seed=0) -> dict:
         )
         out[f"r{res}"] = row
         del lf
+    return out
+
+
+def march_cost(scene, dims, resolutions, n_rays, repeats, seed=0) -> dict:
+    """The march's cost per ray as the geometry maps grow (issue 33: at 512² at most about twice its cost at
+    128², with the full hi-Z pyramid): the same rays traced by the shading's tracer (hi-Z, wavefront engine)
+    through the grid's geometry maps baked at each resolution (radiance 4²: the trace does not read it).
+    Compile apart; the repeats interleaved across resolutions, medians. ``trace_s_ratio`` and
+    ``steps_ratio``: the finest resolution's over the coarsest's."""
+    caster = EmbreeCaster(scene)
+    o_np, d_np = shading_rays(scene, caster, n_rays, seed)
+    o, d = jnp.asarray(o_np), jnp.asarray(d_np)
+    runs, out = {}, {}
+    for res in resolutions:
+        lf, bake_s = bake_grid(scene, dims, res, caster, radiance_res=4)
+        tr = make_tracer(lf, scene.bounds, config=TraceConfig(hierarchy="hiz", engine="wavefront"))
+        t0 = time.perf_counter()
+        compiled = trace_wavefront.lower(tr, o, d).compile()
+        compile_s = time.perf_counter() - t0
+        hit, _ = jax.block_until_ready(compiled(tr, o, d))
+        runs[res] = (lambda c=compiled, tr=tr: c(tr, o, d), [])
+        out[f"r{res}"] = {
+            "rays": len(o_np),
+            "bake_s": bake_s,
+            "compile_s": compile_s,
+            "steps": float(np.mean(np.asarray(hit.steps))),
+            "unresolved_share": float(np.mean(np.asarray(hit.status) == TraceStatus.UNRESOLVED)),
+        }
+        del lf
+    for _ in range(repeats):  # interleaved: the machines are shared
+        for fn, times in runs.values():
+            t0 = time.perf_counter()
+            jax.block_until_ready(fn())
+            times.append(time.perf_counter() - t0)
+    for res, (_, times) in runs.items():
+        out[f"r{res}"]["trace_s"] = statistics.median(times)
+    lo, hi = f"r{min(resolutions)}", f"r{max(resolutions)}"
+    out["trace_s_ratio"] = out[hi]["trace_s"] / out[lo]["trace_s"]
+    out["steps_ratio"] = out[hi]["steps"] / out[lo]["steps"]
     return out
 
 
@@ -344,6 +396,8 @@ def main(argv=None) -> dict:
         result["sponza_wavefront_rays_per_s"] = None
         result["wavefront_vs_reference_sponza"] = None
         result["sponza_frame_s"] = None
+        result["sponza_march_s_r512_over_r128"] = None
+        result["sponza_march_steps_r512_over_r128"] = None
         result["sponza_note"] = f"crytek_sponza not loaded: {e}"
     else:
         sponza, sponza_lf = bench_scene(sponza_scene, (8, 4, 4), 64, args.rays, args.repeats)
@@ -362,6 +416,10 @@ def main(argv=None) -> dict:
         result["sponza_hierarchy_steps"] = steps
         for r in (128, 256):
             result[f"sponza_hiz_vs_two_level_steps_r{r}"] = steps[f"r{r}"]["hiz_vs_two_level_steps"]
+        march = march_cost(sponza_scene, (8, 4, 4), (128, 512), args.rays, args.repeats)
+        result["sponza_march_cost"] = march
+        result["sponza_march_s_r512_over_r128"] = march["trace_s_ratio"]
+        result["sponza_march_steps_r512_over_r128"] = march["steps_ratio"]
     result["lane_utilisation"] = min(util)
     ev = cornell_eval(load_scene("cornell_box"), quick=args.quick)
     result["cornell_eval"] = ev
