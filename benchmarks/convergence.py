@@ -798,7 +798,7 @@ def targets(result: dict) -> dict:
         v = result.get(k)
         met = None if v is None else {"<=": v <= t, ">=": v >= t, "<": v < t}[op]
         out[k] = {"value": v, "target": f"{op} {t}", "met": met}
-        bound = result.get(UPPER_BOUNDS.get(k, ""))
+        bound = result.get(UPPER_BOUNDS[k]) if k in UPPER_BOUNDS else None
         if met and bound is not None:
             out[k]["upper95"] = bound
             if bound > t:
@@ -840,6 +840,28 @@ def scene_plan(args, key: str) -> dict:
     return plan
 
 
+def plan_defaults(name: str) -> str:
+    """Each plan's value of ``name`` for the options' help, read from :data:`PLANS` (e.g. ``papers 32,
+    sweep 8, quick 4``; per scene where the scenes differ; a geometry resolution of None is the factor's)."""
+
+    def shown(v) -> str:
+        if v is None:
+            return "--geometry-factor × radiance"
+        return "x".join(map(str, v)) if isinstance(v, tuple) else str(v)
+
+    def value(plan: dict) -> str:
+        if name in plan:
+            return shown(plan[name])
+        per = {scene: shown(plan[scene][name]) for scene in SCENES}
+        return (
+            per.popitem()[1]
+            if len(set(per.values())) == 1
+            else " / ".join(f"{k} {v}" for k, v in per.items())
+        )
+
+    return ", ".join(f"{p} {value(plan)}" for p, plan in PLANS.items())
+
+
 def parse_args(argv=None) -> argparse.Namespace:
     """The benchmark's options, the run-wide ones its plan's where not given (also what ``paper_check.py``
     builds its cells with)."""
@@ -864,8 +886,8 @@ def parse_args(argv=None) -> argparse.Namespace:
         "--bake-spp",
         nargs="+",
         default=None,
-        help="paths per texel ray, e.g. 8 (all scenes) or cornell:32 (default the plan's: papers 32, "
-        "sweep 8, quick 4)",
+        help=f"paths per texel ray, e.g. 8 (all scenes) or cornell:32 (default the plan's: "
+        f"{plan_defaults('bake_spp')})",
     )
     ap.add_argument("--n-sub", type=int, default=1, help="n_sub² rays per radiance texel")
     ap.add_argument(
@@ -878,37 +900,39 @@ def parse_args(argv=None) -> argparse.Namespace:
     )
     ap.add_argument("--max-depth", type=int, default=4, help="evaluation path depth (bake: − 1)")
     ap.add_argument(
-        "--eval-spp", type=int, default=None, help="reference paths/pixel (default the plan's: 32; quick 16)"
+        "--eval-spp",
+        type=int,
+        default=None,
+        help=f"reference paths/pixel (default the plan's: {plan_defaults('eval_spp')})",
     )
     ap.add_argument(
         "--glossy-spp",
         nargs="+",
         default=None,
-        help="glossy rays per pixel, e.g. 16 (all scenes) or sponza:512 (default the plan's: 16, papers' "
-        "Sponza 512; the seeds' raw spread falls as the rays grow: on Sponza 8x4x4 at 512² geometry, 512 "
-        "rays at 4 reference paths a ray read 3.5 %% on twenty seeds, for 156-200 s of shading a frame on 2 "
-        "cores; experiments/README.md §2)",
+        help="glossy rays per pixel, e.g. 16 (all scenes) or sponza:512 (default the plan's: "
+        f"{plan_defaults('glossy_spp')}; the seeds' raw spread falls as the rays grow: on Sponza 8x4x4 at "
+        "512² geometry, 512 rays at 4 reference paths a ray read 3.5 %% on twenty seeds, for 156-200 s of "
+        "shading a frame on 2 cores; experiments/README.md §2)",
     )
     ap.add_argument(
         "--glossy-ref-spp",
         nargs="+",
         default=None,
-        help="CRN reference paths per glossy ray, e.g. 4 (all scenes) or sponza:16 (default the plan's: 4; "
-        "Cornell's target divides by this reference's noise floor)",
+        help="CRN reference paths per glossy ray, e.g. 4 (all scenes) or sponza:16 (default the plan's: "
+        f"{plan_defaults('glossy_ref_spp')}; Cornell's target divides by this reference's noise floor)",
     )
     ap.add_argument(
         "--eval-size",
         nargs="+",
         default=None,
-        help="evaluation image size, e.g. sponza:128x96 (default the plan's: Cornell 32x32, Sponza 64x48; "
-        "quick smaller)",
+        help=f"evaluation image size, e.g. sponza:128x96 (default the plan's: {plan_defaults('eval')})",
     )
     ap.add_argument("--timing-repeats", type=int, default=1)
     ap.add_argument(
         "--seeds",
         type=int,
         default=None,
-        help="bake + evaluation seeds of the 128-probe grid (default the plan's: papers 20, else 3)",
+        help=f"bake + evaluation seeds of the 128-probe grid (default the plan's: {plan_defaults('seeds')})",
     )
     ap.add_argument(
         "--spread-fixed-rays",
@@ -917,7 +941,10 @@ def parse_args(argv=None) -> argparse.Namespace:
         "still each seed's): sponza_grid_seed_spread_fixed_rays, the spread the sample counts control",
     )
     ap.add_argument(
-        "--grid128-res", type=int, default=None, help="its map resolution (default the plan's: 64; quick 16)"
+        "--grid128-res",
+        type=int,
+        default=None,
+        help=f"its map resolution (default the plan's: {plan_defaults('grid128_res')})",
     )
     ap.add_argument("--fresh", action="store_true", help="recompute cached cells")
     ap.add_argument(
@@ -941,8 +968,8 @@ def parse_args(argv=None) -> argparse.Namespace:
         "--geometry-res",
         type=int,
         default=None,
-        help="geometry maps at least this fine (BakeConfig.geometry_res; default the plan's: papers 512, "
-        "else --geometry-factor × the radiance's)",
+        help="geometry maps at least this fine (BakeConfig.geometry_res; default the plan's: "
+        f"{plan_defaults('geometry_res')})",
     )
     ap.add_argument(
         "--trace-engine",

@@ -51,7 +51,7 @@ import jax.numpy as jnp
 import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
-from _common import env_info, setup_scene_path, write_result
+from _common import env_info, setup_scene_path, timed, write_result
 from probeplace._core import ProbeSet, scene_box
 from probeplace.geometry import EmbreeCaster
 from probeplace.probes import (
@@ -237,8 +237,9 @@ def march_cost(scene, dims, resolutions, n_rays, repeats, seed=0) -> dict:
         t0 = time.perf_counter()
         compiled = trace_wavefront.lower(tr, o, d).compile()
         compile_s = time.perf_counter() - t0
-        hit, _ = jax.block_until_ready(compiled(tr, o, d))
-        runs[res] = (lambda c=compiled, tr=tr: c(tr, o, d), [])
+        fn = lambda c=compiled, tr=tr: c(tr, o, d)
+        _, (hit, _) = timed(fn)
+        runs[res] = (fn, [])
         out[f"r{res}"] = {
             "rays": len(o_np),
             "bake_s": bake_s,
@@ -249,9 +250,7 @@ def march_cost(scene, dims, resolutions, n_rays, repeats, seed=0) -> dict:
         del lf
     for _ in range(repeats):  # interleaved: the machines are shared
         for fn, times in runs.values():
-            t0 = time.perf_counter()
-            jax.block_until_ready(fn())
-            times.append(time.perf_counter() - t0)
+            times.append(timed(fn)[0])
     for res, (_, times) in runs.items():
         out[f"r{res}"]["trace_s"] = statistics.median(times)
     lo, hi = f"r{min(resolutions)}", f"r{max(resolutions)}"
