@@ -654,7 +654,7 @@ def report_cell(
 def run_scene(key: str, args, result: dict) -> None:
     try:
         b = Bench(key, args)
-    except Exception as e:  # the scene lives outside the repository (PROBEPLACE_SCENE_PATH)
+    except SceneError as e:  # not on the scene path (it lives outside the repository) or unreadable
         result["skipped"][key] = f"{SCENES[key]['name']} not loaded: {type(e).__name__}: {e}"
         log(result["skipped"][key])
         return
@@ -745,7 +745,7 @@ def instrument_costs(args, result: dict, n: int = 128) -> None:
     geo = args.geometry_res or 512
     try:
         scene = load_scene(SCENES["sponza"]["name"])
-    except Exception as e:  # the scene lives outside the repository (PROBEPLACE_SCENE_PATH)
+    except SceneError as e:  # not on the scene path (it lives outside the repository) or unreadable
         result["skipped"]["instrument_costs"] = f"crytek_sponza not loaded: {type(e).__name__}: {e}"
         return
     caster = default_caster(scene)

@@ -312,6 +312,7 @@ def main(argv=None) -> dict:
     ap.add_argument("--no-readme", action="store_true", help="do not write experiments/README.md's table")
     args = ap.parse_args(argv)
     setup_scene_path()
+    from probeplace._core import SceneError
     from probeplace.scene import load_scene
 
     t_all = time.perf_counter()
@@ -319,7 +320,7 @@ def main(argv=None) -> dict:
     skipped = {}
     try:
         scenes["crytek_sponza"] = load_scene("crytek_sponza")
-    except Exception as e:  # the scene lives outside the repository (PROBEPLACE_SCENE_PATH)
+    except SceneError as e:  # not on the scene path (it lives outside the repository) or unreadable
         scenes["crytek_sponza"] = None
         skipped["sponza"] = f"crytek_sponza not loaded: {type(e).__name__}: {e}"
         log(skipped["sponza"])

@@ -35,6 +35,7 @@ from pathlib import Path
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 
 from _common import env_info, setup_scene_path, write_result
+from probeplace._core import SceneError
 
 REFINE_SCENES = ("cornell_box", "temple")
 REFINE_BUDGET = 8  # the skeleton start; soft coverage not saturated (Cornell 0.991, temple 0.890)
@@ -166,7 +167,7 @@ def main() -> None:
                 sponza_auto_probes=s["probes"],
                 sponza_timings=s["meta"]["timings"],
             )
-        except Exception as e:  # scene absent: report why instead of a number
+        except SceneError as e:  # not on the scene path or unreadable: why instead of a number; a bug raises
             out.update(
                 sponza_place_s=None, sponza_auto_coverage=None, sponza_error=f"{type(e).__name__}: {e}"
             )

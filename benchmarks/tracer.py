@@ -52,7 +52,7 @@ import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 from _common import env_info, setup_scene_path, timed, write_result
-from probeplace._core import ProbeSet, scene_box
+from probeplace._core import ProbeSet, SceneError, scene_box
 from probeplace.geometry import EmbreeCaster
 from probeplace.probes import (
     BakeConfig,
@@ -389,7 +389,7 @@ def main(argv=None) -> dict:
         result[f"hiz_vs_two_level_steps_r{r}"] = steps[f"r{r}"]["hiz_vs_two_level_steps"]
     try:
         sponza_scene = load_scene("crytek_sponza")
-    except Exception as e:  # the scene lives outside the repository
+    except SceneError as e:  # not on the scene path (it lives outside the repository) or unreadable
         result["sponza"] = None
         result["sponza_lf_rays_per_s"] = None
         result["sponza_wavefront_rays_per_s"] = None

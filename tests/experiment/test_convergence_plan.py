@@ -104,3 +104,53 @@ def test_a_bad_plan_or_seed_count_is_refused_in_one_line(argv, says, capsys):
     assert e.value.code == 2
     assert says in capsys.readouterr().err.strip().splitlines()[-1]
     assert cv.parse_args(["--quick"]).plan == "quick"
+
+
+def test_a_scene_that_does_not_load_is_skipped_and_a_bug_is_not(convergence, monkeypatch):
+    """Sponza off the scene path (``SceneError``: it lives outside the repository) leaves its figures null,
+    each with the reason, and Cornell's are measured; any other error in a scene's set-up is a bug, which
+    stops the run instead of reading as a skipped scene."""
+    cv, asked = convergence
+    stand_in = cv.Bench
+
+    class NoSponza(stand_in):
+        def __init__(self, key, args):
+            if key == "sponza":
+                raise cv.SceneError("unknown scene 'crytek_sponza'")
+            super().__init__(key, args)
+
+    monkeypatch.setattr(cv, "Bench", NoSponza)
+    result = cv.main(["--no-costs"])
+    assert result["skipped"]["sponza"].startswith("crytek_sponza not loaded: SceneError: unknown scene")
+    assert result["sponza_16x8x8_g512_agreement"] is None
+    assert result["cornell_4x4x4_g512_mse_over_floor"] is not None
+    assert {c[0] for c in asked["cells"]} == {"cornell"}
+
+    class Broken(stand_in):
+        def __init__(self, key, args):
+            raise TypeError("a bug in the bench")
+
+    monkeypatch.setattr(cv, "Bench", Broken)
+    with pytest.raises(TypeError, match="a bug in the bench"):
+        cv.main(["--no-costs"])
+
+
+@pytest.mark.parametrize("error", ["scene", "bug"])
+def test_the_set_up_costs_skip_a_scene_that_does_not_load_and_raise_a_bug(error, monkeypatch):
+    import probeplace.scene
+
+    cv = benchmark_module("convergence")
+
+    def load_scene(name):
+        if error == "scene":
+            raise cv.SceneError(f"unknown scene {name!r}")
+        raise RuntimeError("a bug in the loader")
+
+    monkeypatch.setattr(probeplace.scene, "load_scene", load_scene)
+    result = {"skipped": {}}
+    if error == "scene":
+        cv.instrument_costs(cv.parse_args([]), result)
+        assert result["skipped"]["instrument_costs"].startswith("crytek_sponza not loaded: SceneError")
+    else:
+        with pytest.raises(RuntimeError, match="a bug in the loader"):
+            cv.instrument_costs(cv.parse_args([]), result)
