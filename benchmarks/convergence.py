@@ -720,7 +720,9 @@ def run_scene(key: str, args, result: dict) -> None:
         if None in hill:
             result["skipped"][k] = cached
         if args.spread_fixed_rays:  # the same seeds, every one evaluated on seed 0's rays
-            fixed = np.array([b.cell("8x4x4", res, s, ray_seed=0)["mse_glossy"] for s in range(args.seeds)])
+            # seed 0 on its own rays is the raw spread's cell: ray_seed None, not a second cell
+            on_seed0_rays = [b.cell("8x4x4", res, s, ray_seed=0 if s else None) for s in range(args.seeds)]
+            fixed = np.array([c["mse_glossy"] for c in on_seed0_rays])
             result["sponza_grid_seed_spread_fixed_rays"] = seed_cv(fixed)
             result["sponza_grid_seed_spread_fixed_rays_ci95"] = cv_interval(fixed)
         else:

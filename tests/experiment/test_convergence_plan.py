@@ -17,7 +17,7 @@ from ._util import benchmark_module
 @pytest.fixture
 def convergence(monkeypatch):
     cv = benchmark_module("convergence")
-    asked: dict = {"cells": [], "costs": []}
+    asked: dict = {"cells": [], "costs": [], "ray_seeds": []}
 
     class StandIn:
         """A scene's bench that loads nothing and records the cells asked for."""
@@ -27,6 +27,7 @@ def convergence(monkeypatch):
 
         def cell(self, grid, res, seed, positions=None, ray_seed=None):
             asked["cells"].append((self.key, grid, res, seed))
+            asked["ray_seeds"].append((self.key, grid, seed, ray_seed))
             # a real cell's figures: summarise's of metrics that are all 1 (but the top 1 % of pixels hold
             # 1 % of the error: the bulk's spread needs a bulk), and its times and counts
             figures = cv.summarise(defaultdict(lambda: 1.0)) | {"top_percent_share_glossy": 0.01}
@@ -154,3 +155,13 @@ def test_the_set_up_costs_skip_a_scene_that_does_not_load_and_raise_a_bug(error,
     else:
         with pytest.raises(RuntimeError, match="a bug in the loader"):
             cv.instrument_costs(cv.parse_args([]), result)
+
+
+def test_the_fixed_rays_spread_runs_each_seed_on_seed_0s_rays_once(convergence):
+    """``--spread-fixed-rays`` evaluates seeds 1… on seed 0's rays; seed 0 on its own rays is the cell the
+    raw spread has already run, not a second one."""
+    cv, asked = convergence
+    result = cv.main(["--seeds", "3", "--spread-fixed-rays", "--no-costs"])
+    grid = [(s, r) for k, g, s, r in asked["ray_seeds"] if (k, g) == ("sponza", "8x4x4")]
+    assert set(grid) == {(0, None), (1, None), (1, 0), (2, None), (2, 0)}
+    assert result["sponza_grid_seed_spread_fixed_rays"] is not None
