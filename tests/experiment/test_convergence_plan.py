@@ -17,7 +17,7 @@ from ._util import benchmark_module
 @pytest.fixture
 def convergence(monkeypatch):
     cv = benchmark_module("convergence")
-    asked: dict = {"cells": [], "costs": [], "ray_seeds": []}
+    asked: dict = {"cells": [], "costs": []}
 
     class StandIn:
         """A scene's bench that loads nothing and records the cells asked for."""
@@ -26,8 +26,7 @@ def convergence(monkeypatch):
             self.key, self.plan, self.shared = key, cv.scene_plan(args, key), {}
 
         def cell(self, grid, res, seed, positions=None, ray_seed=None):
-            asked["cells"].append((self.key, grid, res, seed))
-            asked["ray_seeds"].append((self.key, grid, seed, ray_seed))
+            asked["cells"].append((self.key, grid, res, seed, ray_seed))
             # a real cell's figures: summarise's of metrics that are all 1 (but the top 1 % of pixels hold
             # 1 % of the error: the bulk's spread needs a bulk), and its times and counts
             figures = cv.summarise(defaultdict(lambda: 1.0)) | {"top_percent_share_glossy": 0.01}
@@ -136,25 +135,29 @@ def test_a_scene_that_does_not_load_is_skipped_and_a_bug_is_not(convergence, mon
         cv.main(["--no-costs"])
 
 
-@pytest.mark.parametrize("error", ["scene", "bug"])
-def test_the_set_up_costs_skip_a_scene_that_does_not_load_and_raise_a_bug(error, monkeypatch):
+def _costs_with_loader_raising(error: Exception, monkeypatch) -> dict:
+    """``instrument_costs``' result with ``load_scene`` raising ``error``."""
     import probeplace.scene
 
-    cv = benchmark_module("convergence")
-
     def load_scene(name):
-        if error == "scene":
-            raise cv.SceneError(f"unknown scene {name!r}")
-        raise RuntimeError("a bug in the loader")
+        raise error
 
     monkeypatch.setattr(probeplace.scene, "load_scene", load_scene)
-    result = {"skipped": {}}
-    if error == "scene":
-        cv.instrument_costs(cv.parse_args([]), result)
-        assert result["skipped"]["instrument_costs"].startswith("crytek_sponza not loaded: SceneError")
-    else:
-        with pytest.raises(RuntimeError, match="a bug in the loader"):
-            cv.instrument_costs(cv.parse_args([]), result)
+    cv, result = benchmark_module("convergence"), {"skipped": {}}
+    cv.instrument_costs(cv.parse_args([]), result)
+    return result
+
+
+def test_the_set_up_costs_skip_a_scene_that_does_not_load(monkeypatch):
+    from probeplace._core import SceneError
+
+    result = _costs_with_loader_raising(SceneError("unknown scene 'crytek_sponza'"), monkeypatch)
+    assert result["skipped"]["instrument_costs"].startswith("crytek_sponza not loaded: SceneError")
+
+
+def test_the_set_up_costs_raise_a_bug_in_the_loader(monkeypatch):
+    with pytest.raises(RuntimeError, match="a bug in the loader"):
+        _costs_with_loader_raising(RuntimeError("a bug in the loader"), monkeypatch)
 
 
 def test_the_fixed_rays_spread_runs_each_seed_on_seed_0s_rays_once(convergence):
@@ -162,6 +165,6 @@ def test_the_fixed_rays_spread_runs_each_seed_on_seed_0s_rays_once(convergence):
     raw spread has already run, not a second one."""
     cv, asked = convergence
     result = cv.main(["--seeds", "3", "--spread-fixed-rays", "--no-costs"])
-    grid = [(s, r) for k, g, s, r in asked["ray_seeds"] if (k, g) == ("sponza", "8x4x4")]
-    assert set(grid) == {(0, None), (1, None), (1, 0), (2, None), (2, 0)}
+    grid = {c[3:] for c in asked["cells"] if c[:2] == ("sponza", "8x4x4")}  # (seed, ray seed)
+    assert grid == {(0, None), (1, None), (1, 0), (2, None), (2, 0)}
     assert result["sponza_grid_seed_spread_fixed_rays"] is not None
