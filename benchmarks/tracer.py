@@ -64,6 +64,24 @@ from probeplace.probes import (
 )
 from probeplace.probes.tracer._wavefront import trace_wavefront
 
+#: Every figure of the Sponza part of :func:`main`, null in a run where Sponza does not load.
+SPONZA_KEYS = (
+    "sponza",
+    "sponza_frame",
+    "sponza_frame_s",
+    "sponza_lf_rays_per_s",
+    "sponza_lf_vs_embree_1t",
+    "sponza_hiz_vs_two_level_steps",
+    "sponza_wavefront_rays_per_s",
+    "wavefront_vs_reference_sponza",
+    "sponza_hierarchy_steps",
+    "sponza_hiz_vs_two_level_steps_r128",
+    "sponza_hiz_vs_two_level_steps_r256",
+    "sponza_march_cost",
+    "sponza_march_s_r512_over_r128",
+    "sponza_march_steps_r512_over_r128",
+)
+
 
 def _unit(v):
     return v / np.linalg.norm(v, axis=-1, keepdims=True)
@@ -390,35 +408,33 @@ def main(argv=None) -> dict:
     try:
         sponza_scene = load_scene("crytek_sponza")
     except SceneError as e:  # not on the scene path (it lives outside the repository) or unreadable
-        result["sponza"] = None
-        result["sponza_lf_rays_per_s"] = None
-        result["sponza_wavefront_rays_per_s"] = None
-        result["wavefront_vs_reference_sponza"] = None
-        result["sponza_frame_s"] = None
-        result["sponza_march_s_r512_over_r128"] = None
-        result["sponza_march_steps_r512_over_r128"] = None
+        result.update(dict.fromkeys(SPONZA_KEYS))
         result["sponza_note"] = f"crytek_sponza not loaded: {e}"
     else:
+        sp: dict = {}
         sponza, sponza_lf = bench_scene(sponza_scene, (8, 4, 4), 64, args.rays, args.repeats)
-        result["sponza"] = sponza
+        sp["sponza"] = sponza
         frame = frame_shading(sponza_scene, sponza_lf, EmbreeCaster(sponza_scene), repeats=args.repeats)
-        result["sponza_frame"] = frame
-        result["sponza_frame_s"] = frame["frame_s"]
+        sp["sponza_frame"] = frame
+        sp["sponza_frame_s"] = frame["frame_s"]
         del sponza_lf
-        result["sponza_lf_rays_per_s"] = sponza["lf_rays_per_s"]
-        result["sponza_lf_vs_embree_1t"] = sponza["lf_rays_per_s"] / sponza["embree_1t_rays_per_s"]
-        result["sponza_hiz_vs_two_level_steps"] = sponza["steps_hiz"] / sponza["steps_two_level"]
-        result["sponza_wavefront_rays_per_s"] = sponza["wavefront_rays_per_s"]
-        result["wavefront_vs_reference_sponza"] = sponza["wavefront_vs_reference"]
+        sp["sponza_lf_rays_per_s"] = sponza["lf_rays_per_s"]
+        sp["sponza_lf_vs_embree_1t"] = sponza["lf_rays_per_s"] / sponza["embree_1t_rays_per_s"]
+        sp["sponza_hiz_vs_two_level_steps"] = sponza["steps_hiz"] / sponza["steps_two_level"]
+        sp["sponza_wavefront_rays_per_s"] = sponza["wavefront_rays_per_s"]
+        sp["wavefront_vs_reference_sponza"] = sponza["wavefront_vs_reference"]
         util.append(sponza["wavefront_lane_utilisation"])
         steps = hierarchy_steps(sponza_scene, (8, 4, 4), (128, 256), n_h)
-        result["sponza_hierarchy_steps"] = steps
+        sp["sponza_hierarchy_steps"] = steps
         for r in (128, 256):
-            result[f"sponza_hiz_vs_two_level_steps_r{r}"] = steps[f"r{r}"]["hiz_vs_two_level_steps"]
+            sp[f"sponza_hiz_vs_two_level_steps_r{r}"] = steps[f"r{r}"]["hiz_vs_two_level_steps"]
         march = march_cost(sponza_scene, (8, 4, 4), (128, 512), args.rays, args.repeats)
-        result["sponza_march_cost"] = march
-        result["sponza_march_s_r512_over_r128"] = march["trace_s_ratio"]
-        result["sponza_march_steps_r512_over_r128"] = march["steps_ratio"]
+        sp["sponza_march_cost"] = march
+        sp["sponza_march_s_r512_over_r128"] = march["trace_s_ratio"]
+        sp["sponza_march_steps_r512_over_r128"] = march["steps_ratio"]
+        # a run without Sponza nulls exactly these keys: the list and this branch must not drift apart
+        assert sp.keys() == set(SPONZA_KEYS), sorted(sp.keys() ^ set(SPONZA_KEYS))
+        result.update(sp)
     result["lane_utilisation"] = min(util)
     ev = cornell_eval(load_scene("cornell_box"), quick=args.quick)
     result["cornell_eval"] = ev
