@@ -52,6 +52,7 @@ def glossy_rays(scene, caster, view: str, width: int, height: int, spp: int, see
 
 def grid_probes(scene, caster, dims, res: int):
     """Geometry-only bake of a uniform grid (cell centres), cached."""
+    from probeplace._core import ProbeplaceError
     from probeplace.probes import load_probes, save_probes
 
     sys_path = ROOT / "benchmarks"
@@ -65,7 +66,7 @@ def grid_probes(scene, caster, dims, res: int):
     if path.exists():
         try:
             return load_probes(path), 0.0
-        except Exception as e:  # the stored layout changed: rebake
+        except ProbeplaceError as e:  # cut, corrupt or of an older layout: rebake (any other error is a bug)
             print(f"cache {path.name} unreadable ({e}); rebaking", flush=True)
     lf, bake_s = bake_grid(scene, dims, res, caster)
     OUT.mkdir(parents=True, exist_ok=True)
