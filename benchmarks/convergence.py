@@ -7,8 +7,8 @@
 
 What a run measures, where its options do not say, is its plan (``PLANS``). The default, ``papers``, is
 issue 33's instrument at the papers' resolution: Cornell 4×4×4 at 128² radiance and Sponza 8×4×4 and
-16×8×8 at 64², all with 512² geometry maps, 32 bake paths, 512 glossy rays a Sponza pixel and twenty seeds
-of the 8×4×4 grid; about 3 h on 2 cores from an empty cache, and a rerun reuses every cell already done.
+16×8×8 at 64², all with 512² geometry maps, 32 bake paths, 512 glossy rays a Sponza pixel and thirty seeds
+of the 8×4×4 grid; about 4 h on 2 cores from an empty cache, and a rerun reuses every cell already done.
 ``--plan sweep`` is issue 16's grids × radiance resolutions (16–128) with geometry maps twice as fine;
 ``--quick`` (``--plan quick``) a few minutes of small cells.
 
@@ -120,9 +120,11 @@ SCENES = {
 PLANS = {
     # Issue 33, the default: the instrument at the papers' resolution, 512² geometry maps (Wang 2019 §5),
     # with the counts that decide its targets: 32 bake paths (Cornell's floor ratio at 128² radiance), 512
-    # glossy rays a pixel and twenty seeds (the seed spread's one-sided bound; experiments/README.md §2).
-    # About 3 h on 2 cores from an empty cache, most of it the twenty seeds (~7.5 min each); every cell is
-    # cached as it finishes, so a stopped run resumes where it stopped.
+    # glossy rays a pixel and thirty seeds (the seed spread's one-sided bound: at a spread near 3.6 %, twenty
+    # seeds put it at 4.9-5.0 %, undecided on one machine at 5.006 %, and thirty at 4.86 % there;
+    # experiments/README.md §2, "Thirty seeds").
+    # About 4 h on 2 cores from an empty cache, most of it the thirty seeds (~6.5-7.5 min each); every cell
+    # is cached as it finishes, so a stopped run resumes where it stopped.
     "papers": {
         "cornell": {
             "grids": ["4x4x4"], "res": [128], "eval": (32, 32),
@@ -132,7 +134,7 @@ PLANS = {
             "grids": ["8x4x4", "16x8x8"], "res": [64], "eval": (64, 48),
             "bake_spp": 32, "glossy_spp": 512, "glossy_ref_spp": 4,
         },
-        "geometry_res": 512, "seeds": 20, "grid128_res": 64, "eval_spp": 32,
+        "geometry_res": 512, "seeds": 30, "grid128_res": 64, "eval_spp": 32,
     },
     # Issue 16: the error against probe density × radiance resolution, geometry maps twice the radiance's.
     # Its counts are also the cells' of the experiments that rerun one (sponza_cell_bench, paper_check.py).
@@ -873,7 +875,7 @@ def parse_args(argv=None) -> argparse.Namespace:
         choices=list(PLANS),
         default=None,
         help="what to measure where the options below do not say (PLANS): papers (default; issue 33's "
-        "cells at 512² geometry and the counts that decide its targets, about 3 h on 2 cores from an empty "
+        "cells at 512² geometry and the counts that decide its targets, about 4 h on 2 cores from an empty "
         "cache, resumable), sweep (issue 16's grids × radiance resolutions) or quick",
     )
     ap.add_argument("--quick", action="store_true", help="--plan quick: small grids, resolutions and images")
@@ -913,7 +915,7 @@ def parse_args(argv=None) -> argparse.Namespace:
         default=None,
         help="glossy rays per pixel, e.g. 16 (all scenes) or sponza:512 (default the plan's: "
         f"{plan_defaults('glossy_spp')}; the seeds' raw spread falls as the rays grow: on Sponza 8x4x4 at "
-        "512² geometry, 512 rays at 4 reference paths a ray read 3.5 %% on twenty seeds, for 156-200 s of "
+        "512² geometry, 512 rays at 4 reference paths a ray read 3.7 %% on thirty seeds, for 156-200 s of "
         "shading a frame on 2 cores; experiments/README.md §2)",
     )
     ap.add_argument(
