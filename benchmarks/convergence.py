@@ -52,10 +52,12 @@ null, with ``why``):
 ``_agreement`` ≥ 0.95, ``_unresolved`` ≤ 0.03, ``_trace_excess`` ≤ 0.2, ``_glossy_over_black`` and
 ``_diffuse_over_black`` < 1; ``sponza_grid128_glossy_over_black`` < 1 (8×4×4, 128 probes) and
 ``sponza_grid128_seed_cv`` ≤ 0.10 (coefficient of variation, population σ / mean, of the glossy MSE over
-``--seeds`` bake + evaluation seeds). Keys of cells not run (left out by the plan or the options, or Sponza
-absent) are null with a reason in ``skipped``. Last stdout line: the JSON, also written to
-benchmarks/results/convergence_geometry<N>.json when the geometry maps are at least N² (the papers plan:
-``convergence_geometry512.json``), else to ``convergence.json`` (the sweep and quick plans).
+``--seeds`` bake + evaluation seeds, ``--first-seed`` … on; only the first seed's shading is timed, the
+others run it once untimed, ``evaluate.EvalConfig.timing_repeats`` 0). Keys of cells not run (left out by
+the plan or the options, or Sponza absent) are null with a reason in ``skipped``. Last stdout line: the
+JSON, also written to benchmarks/results/convergence_geometry<N>.json when the geometry maps are at least
+N² (the papers plan: ``convergence_geometry512.json``), else to ``convergence.json`` (the sweep and quick
+plans).
 Issue 33 (the instrument at the papers' resolution, the default plan): every cell's figures
 also under ``{scene}_{grid}_g{G}_…`` (G the geometry maps' resolution); targets
 ``cornell_4x4x4_g512_mse_over_floor`` ≤ 1.3, ``sponza_16x8x8_g512_agreement`` ≥ 0.95, ``_unresolved_seen``
@@ -67,8 +69,9 @@ moves 4–8 % between seeds, which no number of bake or reference paths removes;
 seed divide it out), ``sponza_grid_seed_spread_ci95`` (its 95 % interval, :func:`cv_interval`),
 ``sponza_grid_seed_spread_upper95`` (its one-sided 95 % upper bound, :func:`cv_upper95`: under 0.05, the
 target is met at 95 % confidence) and, with
-``--spread-fixed-rays``, ``sponza_grid_seed_spread_fixed_rays`` (the seeds' spread on seed 0's evaluation
-rays: the bake's and the reference's noise alone, what the sample counts control) with its interval,
+``--spread-fixed-rays``, ``sponza_grid_seed_spread_fixed_rays`` (the seeds' spread on the first seed's
+evaluation rays: the bake's and the reference's noise alone, what the sample counts control) with its
+interval,
 ``sponza_grid_seed_spread_bulk`` (the spread of the glossy MSE less each run's 1 % of pixels with the
 largest error, ``top_percent_share``, which makes the raw spread: mostly too-bright reads at small dark
 spots and unresolved rays, ``experiments/tail_causes.py``) with its interval,
@@ -489,12 +492,19 @@ class Bench:
         return pos, rec
 
     def cell(
-        self, grid: str, res: int, seed: int, positions: np.ndarray | None = None, ray_seed: int | None = None
+        self,
+        grid: str,
+        res: int,
+        seed: int,
+        positions: np.ndarray | None = None,
+        ray_seed: int | None = None,
+        timed: bool = True,
     ) -> dict:
         """One cell's figures, from the cache when present: a grid (``NxMxK``), the automatic skeleton
         set (``AUTO``; its placement seed is ``seed``) or, named ``grid``, the probes at ``positions``;
         ``ray_seed``: the evaluation's rays from that seed (:meth:`steps`), the bake and reference paths
-        from ``seed``."""
+        from ``seed``; ``timed`` False: the shading runs once, untimed (``shading_s_per_frame`` null; its
+        timed repeat is 145 s of a 6.4 min Sponza seed), every other figure the same."""
         settings = self.settings() | {"grid": grid, "res": res, "seed": seed}
         if ray_seed is not None:
             settings["ray_seed"] = ray_seed
@@ -530,7 +540,8 @@ class Bench:
         del tracer  # shade_probes builds its own: not two at once
         t0 = time.perf_counter()
         maps = glossy_maps(lf, self.config.glossy_filter, include_emission=False)
-        shading = shade_probes(self.scene, lf, prim, self.config, maps=maps)
+        untimed = dataclasses.replace(self.config, timing_repeats=0)
+        shading = shade_probes(self.scene, lf, prim, self.config if timed else untimed, maps=maps)
         perfect = perfect_trace(lf, prim, self.config, caster=self.caster, maps=maps)
         m = score(self.scene, lf, self.view, self.config, seed, ref, prim, crn, shading, perfect).metrics
         out = summarise(m) | times | {"eval_s": time.perf_counter() - t0, "settings": settings}
@@ -685,9 +696,15 @@ def run_scene(key: str, args, result: dict) -> None:
     result["shared_steps_s"][key] = {str(s): v[3] for s, v in b.shared.items()}
     if key == "sponza":  # the 128-probe grid over seeds
         res = args.grid128_res
-        runs = [b.cell("8x4x4", res, s) for s in range(args.seeds)]
+        seeds = range(args.first_seed, args.first_seed + args.seeds)
+        runs = [b.cell("8x4x4", res, s, timed=s == seeds[0]) for s in seeds]
         g = np.array([r["mse_glossy"] for r in runs])
-        result["sponza_grid128"] = {"res": res, "seeds": args.seeds, "runs": runs}
+        result["sponza_grid128"] = {
+            "res": res,
+            "seeds": args.seeds,
+            "first_seed": args.first_seed,
+            "runs": runs,
+        }
         result["sponza_grid128_glossy_over_black"] = runs[0]["glossy_over_black"]
         result["sponza_grid128_diffuse_over_black"] = runs[0]["diffuse_over_black"]
         result["sponza_grid128_mse_glossy_perfect_trace"] = runs[0]["mse_glossy_perfect_trace"]
@@ -721,10 +738,13 @@ def run_scene(key: str, args, result: dict) -> None:
         result[k] = None if None in hill else hill
         if None in hill:
             result["skipped"][k] = cached
-        if args.spread_fixed_rays:  # the same seeds, every one evaluated on seed 0's rays
-            # seed 0 on its own rays is the raw spread's cell: ray_seed None, not a second cell
-            on_seed0_rays = [b.cell("8x4x4", res, s, ray_seed=0 if s else None) for s in range(args.seeds)]
-            fixed = np.array([c["mse_glossy"] for c in on_seed0_rays])
+        if args.spread_fixed_rays:  # the same seeds, every one evaluated on the first seed's rays
+            # the first seed on its own rays is the raw spread's first cell, not a second one
+            first = seeds[0]
+            on_first_rays = [runs[0]] + [
+                b.cell("8x4x4", res, s, ray_seed=first, timed=False) for s in seeds[1:]
+            ]
+            fixed = np.array([c["mse_glossy"] for c in on_first_rays])
             result["sponza_grid_seed_spread_fixed_rays"] = seed_cv(fixed)
             result["sponza_grid_seed_spread_fixed_rays_ci95"] = cv_interval(fixed)
         else:
@@ -939,10 +959,18 @@ def parse_args(argv=None) -> argparse.Namespace:
         help=f"bake + evaluation seeds of the 128-probe grid (default the plan's: {plan_defaults('seeds')})",
     )
     ap.add_argument(
+        "--first-seed",
+        type=int,
+        default=0,
+        help="the 128-probe grid's seeds start here (default 0): a fresh sample, fixed before it is looked "
+        "at, for a spread that seeds 0 … N − 1 left undecided (experiments/README.md §2)",
+    )
+    ap.add_argument(
         "--spread-fixed-rays",
         action="store_true",
-        help="also run the 128-probe grid's seeds on seed 0's evaluation rays (the bake and reference paths "
-        "still each seed's): sponza_grid_seed_spread_fixed_rays, the spread the sample counts control",
+        help="also run the 128-probe grid's seeds on the first seed's evaluation rays (the bake and "
+        "reference paths still each seed's): sponza_grid_seed_spread_fixed_rays, the spread the sample "
+        "counts control",
     )
     ap.add_argument(
         "--grid128-res",
@@ -1019,8 +1047,10 @@ def parse_args(argv=None) -> argparse.Namespace:
     for name in RUN_PLANNED:
         if getattr(args, name) is None:
             setattr(args, name, PLANS[args.plan][name])
-    if args.seeds < 1:  # the 8×4×4 grid's figures are its seed 0's
+    if args.seeds < 1:  # the 8×4×4 grid's figures are its first seed's
         ap.error(f"--seeds {args.seeds}: want at least 1 (2 or more for the seeds' spread)")
+    if args.first_seed < 0:
+        ap.error(f"--first-seed {args.first_seed}: want 0 or more")
     return args
 
 

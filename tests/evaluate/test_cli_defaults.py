@@ -113,7 +113,7 @@ def test_the_run_gets_the_runners_settings_and_keys(tmp_path, capsys, no_slow_wo
     ("extra", "needle"),
     [
         (["--trace-engine", "fast"], "--trace-engine: TraceConfig.engine must be one of"),
-        (["--timing-repeats", "0"], "--timing-repeats: EvalConfig.timing_repeats must be ≥ 1, got 0"),
+        (["--timing-repeats", "-1"], "--timing-repeats: EvalConfig.timing_repeats must be ≥ 0, got -1"),
         (["--glossy-ref-spp", "1"], "--glossy-ref-spp: EvalConfig.glossy_ref_spp must be an int ≥ 2"),
         (["--bake-spp", "0"], "--bake-spp must be a positive int or 'auto', got 0"),
         # issue 33, samples from a noise target

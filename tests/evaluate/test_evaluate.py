@@ -134,6 +134,20 @@ def test_evaluation_size_bound_and_all_or_nothing(cornell_eval, tmp_path, monkey
     assert list((tmp_path / "new").iterdir()) == []
 
 
+def test_untimed_shading_same_figures(cornell_eval):
+    """``timing_repeats=0`` shades once, untimed: both times null, every other figure as the timed run's
+    (the same inputs and keys; the timed run's repeats only run the shading again)."""
+    scene, lf, caster, timed = cornell_eval
+    config = EvalConfig(width=12, height=10, spp=8, glossy_spp=4, glossy_ref_spp=2, timing_repeats=0)
+    m = evaluate(scene, lf, view="front", config=config, caster=caster).metrics
+    assert m["shading_s_per_frame"] is None and m["shading_compile_s"] is None
+    assert timed.metrics["shading_s_per_frame"] is not None
+    skip = {"shading_s_per_frame", "shading_compile_s", "timing_repeats", "reference_s"}
+    for k, v in timed.metrics.items():
+        if k not in skip and not k.endswith("_s"):
+            assert m[k] == v, k
+
+
 def test_metrics_invariants(cornell_eval):
     _, lf, _, result = cornell_eval
     m = result.metrics

@@ -25,8 +25,9 @@ def convergence(monkeypatch):
         def __init__(self, key, args):
             self.key, self.plan, self.shared = key, cv.scene_plan(args, key), {}
 
-        def cell(self, grid, res, seed, positions=None, ray_seed=None):
+        def cell(self, grid, res, seed, positions=None, ray_seed=None, timed=True):
             asked["cells"].append((self.key, grid, res, seed, ray_seed))
+            asked.setdefault("timed", {})[(self.key, grid, res, seed, ray_seed)] = timed
             # a real cell's figures: summarise's of metrics that are all 1 (but the top 1 % of pixels hold
             # 1 % of the error: the bulk's spread needs a bulk), and its times and counts
             figures = cv.summarise(defaultdict(lambda: 1.0)) | {"top_percent_share_glossy": 0.01}
@@ -95,7 +96,11 @@ def test_a_scene_option_replaces_that_scene_value_only():
 
 @pytest.mark.parametrize(
     ("argv", "says"),
-    [(["--quick", "--plan", "papers"], "--quick is --plan quick"), (["--seeds", "0"], "--seeds 0")],
+    [
+        (["--quick", "--plan", "papers"], "--quick is --plan quick"),
+        (["--seeds", "0"], "--seeds 0"),
+        (["--first-seed", "-1"], "--first-seed -1: want 0 or more"),
+    ],
 )
 def test_a_bad_plan_or_seed_count_is_refused_in_one_line(argv, says, capsys):
     cv = benchmark_module("convergence")
@@ -160,11 +165,18 @@ def test_the_set_up_costs_raise_a_bug_in_the_loader(monkeypatch):
         _costs_with_loader_raising(RuntimeError("a bug in the loader"), monkeypatch)
 
 
-def test_the_fixed_rays_spread_runs_each_seed_on_seed_0s_rays_once(convergence):
-    """``--spread-fixed-rays`` evaluates seeds 1… on seed 0's rays; seed 0 on its own rays is the cell the
-    raw spread has already run, not a second one."""
+@pytest.mark.parametrize("first", [0, 30])
+def test_the_fixed_rays_spread_runs_each_seed_on_the_first_seeds_rays_once(convergence, first):
+    """``--spread-fixed-rays`` evaluates the seeds after the first on the first seed's rays; the first seed
+    on its own rays is the cell the raw spread has already run, not a second one. ``--first-seed`` moves
+    the seeds (the grid cells' seed 0 stays); only the first seed's shading is timed."""
     cv, asked = convergence
-    result = cv.main(["--seeds", "3", "--spread-fixed-rays", "--no-costs"])
+    result = cv.main(["--seeds", "3", "--first-seed", str(first), "--spread-fixed-rays", "--no-costs"])
     grid = {c[3:] for c in asked["cells"] if c[:2] == ("sponza", "8x4x4")}  # (seed, ray seed)
-    assert grid == {(0, None), (1, None), (1, 0), (2, None), (2, 0)}
+    f = first
+    seeds = {(f, None), (f + 1, None), (f + 1, f), (f + 2, None), (f + 2, f)}
+    assert grid == seeds | {(0, None)}
+    untimed = {c[3:] for c, timed in asked["timed"].items() if c[:2] == ("sponza", "8x4x4") and not timed}
+    assert untimed == seeds - {(f, None)}
     assert result["sponza_grid_seed_spread_fixed_rays"] is not None
+    assert result["sponza_grid128"]["first_seed"] == first

@@ -118,8 +118,8 @@ class ProbeShading:
     t: np.ndarray
     lod: np.ndarray
     origin_seen: np.ndarray
-    seconds_per_frame: float
-    compile_seconds: float
+    seconds_per_frame: float | None
+    compile_seconds: float | None
     probe: np.ndarray | None = None
     diffuse_ids: np.ndarray | None = None
     diffuse_weights: np.ndarray | None = None
@@ -287,10 +287,11 @@ def shade_probes(
 ) -> ProbeShading:
     """Probe shading of every sample: diffuse irradiance by ``config.shading`` and the glossy rays through
     the light-field tracer, read with ``config.glossy_filter``. Timed: the first run (compile) apart, then
-    the median of ``timing_repeats`` runs. The SH coefficients and the glossy read's maps are built once
-    before (like the baked maps); ``maps``: :func:`probes.glossy_maps` of ``lf`` (reflected radiance,
-    ``config.glossy_filter``) if already built. Untimed, with the same tracer: whether each glossy ray's
-    origin is seen by one of the K nearest usable probes (``probes.origins_seen``)."""
+    the median of ``timing_repeats`` runs (both times None when it is 0: one run, not timed). The SH
+    coefficients and the glossy read's maps are built once before (like the baked maps); ``maps``:
+    :func:`probes.glossy_maps` of ``lf`` (reflected radiance, ``config.glossy_filter``) if already built.
+    Untimed, with the same tracer: whether each glossy ray's origin is seen by one of the K nearest usable
+    probes (``probes.origins_seen``)."""
     tracer = make_tracer(lf, scene.bounds, config=config.trace)
     sh_c = sh_coefficients(lf) if config.shading == "sh" else None
     maps = glossy_maps(lf, config.glossy_filter, include_emission=False) if maps is None else maps
@@ -322,7 +323,8 @@ def shade_probes(
         t0 = time.perf_counter()
         shade()
         times.append(time.perf_counter() - t0)
-    per_frame = statistics.median(times)
+    per_frame = statistics.median(times) if times else None
+    compile_s = None if per_frame is None else max(first - per_frame, 0.0)
     n = prim.n_samples
     glossy, status = np.zeros((n, 3)), np.full(n, NO_RAY, np.int32)
     t, lod, seen = np.full(n, np.inf), np.zeros(n), np.zeros(n, bool)
@@ -342,9 +344,7 @@ def shade_probes(
     )
     ids = np.where(prim.valid[:, None], ids, -1).astype(np.int32)
     w = np.where(prim.valid[:, None], np.asarray(w, np.float64), 0.0)
-    return ProbeShading(
-        E, glossy, status, t, lod, seen, per_frame, max(first - per_frame, 0.0), probe, ids, w
-    )
+    return ProbeShading(E, glossy, status, t, lod, seen, per_frame, compile_s, probe, ids, w)
 
 
 def perfect_trace(
