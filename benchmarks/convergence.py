@@ -540,8 +540,8 @@ class Bench:
         del tracer  # shade_probes builds its own: not two at once
         t0 = time.perf_counter()
         maps = glossy_maps(lf, self.config.glossy_filter, include_emission=False)
-        untimed = dataclasses.replace(self.config, timing_repeats=0)
-        shading = shade_probes(self.scene, lf, prim, self.config if timed else untimed, maps=maps)
+        config = self.config if timed else dataclasses.replace(self.config, timing_repeats=0)
+        shading = shade_probes(self.scene, lf, prim, config, maps=maps)
         perfect = perfect_trace(lf, prim, self.config, caster=self.caster, maps=maps)
         m = score(self.scene, lf, self.view, self.config, seed, ref, prim, crn, shading, perfect).metrics
         out = summarise(m) | times | {"eval_s": time.perf_counter() - t0, "settings": settings}
