@@ -8,7 +8,7 @@
 What a run measures, where its options do not say, is its plan (``PLANS``). The default, ``papers``, is
 issue 33's instrument at the papers' resolution: Cornell 4×4×4 at 128² radiance and Sponza 8×4×4 and
 16×8×8 at 64², all with 512² geometry maps, 32 bake paths, 512 glossy rays a Sponza pixel and thirty seeds
-of the 8×4×4 grid; about 4 h on 2 cores from an empty cache, and a rerun reuses every cell already done.
+of the 8×4×4 grid; about 2.5 h on 2 cores from an empty cache, and a rerun reuses every cell already done.
 ``--plan sweep`` is issue 16's grids × radiance resolutions (16–128) with geometry maps twice as fine;
 ``--quick`` (``--plan quick``) a few minutes of small cells.
 
@@ -126,8 +126,9 @@ PLANS = {
     # glossy rays a pixel and thirty seeds (the seed spread's one-sided bound: at a spread near 3.6 %, twenty
     # seeds put it at 4.9-5.0 %, undecided on one machine at 5.006 %, and thirty at 4.86 % there;
     # experiments/README.md §2, "Thirty seeds").
-    # About 4 h on 2 cores from an empty cache, most of it the thirty seeds (~6.5-7.5 min each); every cell
-    # is cached as it finishes, so a stopped run resumes where it stopped.
+    # About 2.5 h on 2 cores from an empty cache: the thirty seeds ~2 h (the first, timed, ~6.5 min, each
+    # other ~4 min: its shading runs once, untimed), the other cells ~35 min; every cell is cached as it
+    # finishes, so a stopped run resumes where it stopped.
     "papers": {
         "cornell": {
             "grids": ["4x4x4"], "res": [128], "eval": (32, 32),
@@ -895,7 +896,7 @@ def parse_args(argv=None) -> argparse.Namespace:
         choices=list(PLANS),
         default=None,
         help="what to measure where the options below do not say (PLANS): papers (default; issue 33's "
-        "cells at 512² geometry and the counts that decide its targets, about 4 h on 2 cores from an empty "
+        "cells at 512² geometry and the counts that decide its targets, about 2.5 h on 2 cores from an empty "
         "cache, resumable), sweep (issue 16's grids × radiance resolutions) or quick",
     )
     ap.add_argument("--quick", action="store_true", help="--plan quick: small grids, resolutions and images")
