@@ -7,8 +7,9 @@
 
 What a run measures, where its options do not say, is its plan (``PLANS``). The default, ``papers``, is
 issue 33's instrument at the papers' resolution: Cornell 4×4×4 at 128² radiance and Sponza 8×4×4 and
-16×8×8 at 64², all with 512² geometry maps, 32 bake paths, 512 glossy rays a Sponza pixel and thirty seeds
-of the 8×4×4 grid; about 2.5 h on 2 cores from an empty cache, and a rerun reuses every cell already done.
+16×8×8 at 64², all with 512² geometry maps, 32 bake paths a Cornell texel and 128 a Sponza texel, 512 glossy
+rays a Sponza pixel and fifteen seeds of the 8×4×4 grid; about 2.5 h on 2 cores from an empty cache, and a
+rerun reuses every cell already done.
 ``--plan sweep`` is issue 16's grids × radiance resolutions (16–128) with geometry maps twice as fine;
 ``--quick`` (``--plan quick``) a few minutes of small cells.
 
@@ -122,13 +123,14 @@ SCENES = {
 #: reference's paths a pixel. A per-scene option (``--grids sponza:16x8x8``) replaces that scene's value only.
 PLANS = {
     # Issue 33, the default: the instrument at the papers' resolution, 512² geometry maps (Wang 2019 §5),
-    # with the counts that decide its targets: 32 bake paths (Cornell's floor ratio at 128² radiance), 512
-    # glossy rays a pixel and thirty seeds (the seed spread's one-sided bound: at a spread near 3.6 %, twenty
-    # seeds put it at 4.9-5.0 %, undecided on one machine at 5.006 %, and thirty at 4.86 % there;
-    # experiments/README.md §2, "Thirty seeds").
-    # About 2.5 h on 2 cores from an empty cache: the thirty seeds ~2 h (the first, timed, ~6.5 min, each
-    # other ~4 min: its shading runs once, untimed), the other cells ~35 min; every cell is cached as it
-    # finishes, so a stopped run resumes where it stopped.
+    # with the counts that decide its targets: Cornell's 32 bake paths (its floor ratio at 128² radiance);
+    # Sponza's 512 glossy rays a pixel (the rays' sample no longer adds to the seed spread) and 128 bake
+    # paths, the count that decides the spread: at 32 the bake made 4.1 % of a 4.5-4.8 % spread, which no
+    # affordable seed count decides against 5 % (experiments/README.md §2, "A fresh sample"); at 128 fifteen
+    # seeds read 1.9 %, one-sided bound 2.8 % ("The bake's paths raised to decide the spread").
+    # About 2.5 h on 2 cores from an empty cache: the fifteen seeds ~1.5 h (the first, timed, ~9.5 min, each
+    # other ~6 min: its shading runs once, untimed; its bake ~140 s), the 16×8×8 cell ~30 min, the other
+    # cells ~15 min; every cell is cached as it finishes, so a stopped run resumes where it stopped.
     "papers": {
         "cornell": {
             "grids": ["4x4x4"], "res": [128], "eval": (32, 32),
@@ -136,9 +138,9 @@ PLANS = {
         },
         "sponza": {
             "grids": ["8x4x4", "16x8x8"], "res": [64], "eval": (64, 48),
-            "bake_spp": 32, "glossy_spp": 512, "glossy_ref_spp": 4,
+            "bake_spp": 128, "glossy_spp": 512, "glossy_ref_spp": 4,
         },
-        "geometry_res": 512, "seeds": 30, "grid128_res": 64, "eval_spp": 32,
+        "geometry_res": 512, "seeds": 15, "grid128_res": 64, "eval_spp": 32,
     },
     # Issue 16: the error against probe density × radiance resolution, geometry maps twice the radiance's.
     # Its counts are also the cells' of the experiments that rerun one (sponza_cell_bench, paper_check.py).
@@ -936,8 +938,9 @@ def parse_args(argv=None) -> argparse.Namespace:
         default=None,
         help="glossy rays per pixel, e.g. 16 (all scenes) or sponza:512 (default the plan's: "
         f"{plan_defaults('glossy_spp')}; the seeds' raw spread falls as the rays grow: on Sponza 8x4x4 at "
-        "512² geometry, 512 rays at 4 reference paths a ray read 3.7 %% on thirty seeds, for 156-200 s of "
-        "shading a frame on 2 cores; experiments/README.md §2)",
+        "512² geometry, 512 rays at 4 reference paths a ray read 3.7 %% and 4.8 %% on two samples of thirty "
+        "seeds at 32 bake paths a texel, for 156-200 s of shading a frame on 2 cores; "
+        "experiments/README.md §2)",
     )
     ap.add_argument(
         "--glossy-ref-spp",
