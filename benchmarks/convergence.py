@@ -8,8 +8,8 @@
 What a run measures, where its options do not say, is its plan (``PLANS``). The default, ``papers``, is
 issue 33's instrument at the papers' resolution: Cornell 4×4×4 at 128² radiance and Sponza 8×4×4 and
 16×8×8 at 64², all with 512² geometry maps, 32 bake paths a Cornell texel and 128 a Sponza texel, 512 glossy
-rays a Sponza pixel and fifteen seeds of the 8×4×4 grid; about 2.5 h on 2 cores from an empty cache, and a
-rerun reuses every cell already done.
+rays a Sponza pixel and fifteen seeds of the 8×4×4 grid; about 2 h 15 min on 2 cores from an empty cache,
+and a rerun reuses every cell already done.
 ``--plan sweep`` is issue 16's grids × radiance resolutions (16–128) with geometry maps twice as fine;
 ``--quick`` (``--plan quick``) a few minutes of small cells.
 
@@ -128,9 +128,10 @@ PLANS = {
     # paths, the count that decides the spread: at 32 the bake made 4.1 % of a 4.5-4.8 % spread, which no
     # affordable seed count decides against 5 % (experiments/README.md §2, "A fresh sample"); at 128 fifteen
     # seeds read 1.9 %, one-sided bound 2.8 % ("The bake's paths raised to decide the spread").
-    # About 2.5 h on 2 cores from an empty cache: the fifteen seeds ~1.5 h (the first, timed, ~9.5 min, each
-    # other ~6 min: its shading runs once, untimed; its bake ~140 s), the 16×8×8 cell ~30 min, the other
-    # cells ~15 min; every cell is cached as it finishes, so a stopped run resumes where it stopped.
+    # About 2 h 15 min on 2 cores from an empty cache: the fifteen seeds ~1.5 h (the first, timed, ~9.5 min,
+    # each other ~6 min: its shading runs once, untimed; its bake ~140 s), the 16×8×8 cell ~30 min (its bake
+    # ~20 min), the other cells ~15 min; every cell is cached as it finishes, so a stopped run resumes where
+    # it stopped (experiments/README.md §2, "The bare command at the plan's 128 bake paths").
     "papers": {
         "cornell": {
             "grids": ["4x4x4"], "res": [128], "eval": (32, 32),
@@ -898,8 +899,8 @@ def parse_args(argv=None) -> argparse.Namespace:
         choices=list(PLANS),
         default=None,
         help="what to measure where the options below do not say (PLANS): papers (default; issue 33's "
-        "cells at 512² geometry and the counts that decide its targets, about 2.5 h on 2 cores from an empty "
-        "cache, resumable), sweep (issue 16's grids × radiance resolutions) or quick",
+        "cells at 512² geometry and the counts that decide its targets, about 2 h 15 min on 2 cores from an "
+        "empty cache, resumable), sweep (issue 16's grids × radiance resolutions) or quick",
     )
     ap.add_argument("--quick", action="store_true", help="--plan quick: small grids, resolutions and images")
     ap.add_argument("--scenes", nargs="+", default=["cornell", "sponza"], choices=list(SCENES))
