@@ -24,6 +24,7 @@ from probeplace.probes import (
     make_tracer,
     trace_light_field,
     trace_probe,
+    tracer_rows,
 )
 from probeplace.probes.tracer._index import VoxelIndex
 from probeplace.probes.tracer._trace import _seeing_probe
@@ -231,7 +232,7 @@ def _one_voxel_index(first: int) -> VoxelIndex:
         origin=jnp.full(3, -10.0, jnp.float32),
         voxel_size=jnp.full(3, 20.0, jnp.float32),
         candidates=jnp.asarray(cand),
-        dims=(1, 1, 1),
+        dims=jnp.ones(3, jnp.int32),
     )
 
 
@@ -397,15 +398,15 @@ def test_tracer_setup_is_a_few_compiled_programs(room):
 
 def test_unusable_probes_take_no_maps_and_change_no_ray(room):
     """The tracer keeps the per-probe maps of usable probes only (issue 33): a set with an inactive probe
-    between two usable ones traces every ray exactly as the set of the two (probe numbers mapped), and its
-    maps have rows for the usable probes, not for every probe."""
+    between two usable ones traces every ray exactly as the set of the two (probe numbers mapped); the
+    maps hold the two usable probes in rows 0 and 1 of their padded rows (``tracer_rows``)."""
     scene, _ = room
     a, x, b = [1.3, 1.1, 2.2], [2.0, 1.5, 2.5], [3.1, 1.9, 3.6]
     three = _bake(scene, np.array([a, x, b]), 8)
     three = eqx.tree_at(lambda lf: lf.active, three, jnp.asarray([True, False, True]))
     two = _bake(scene, np.array([a, b]), 8)
     t3, t2 = make_tracer(three, scene.bounds), make_tracer(two, scene.bounds)
-    assert t3.surfel_r.shape[0] == t2.surfel_r.shape[0] == 2  # rows for the usable probes only
+    assert t3.surfel_r.shape[0] == t2.surfel_r.shape[0] == tracer_rows(2)
     np.testing.assert_array_equal(np.asarray(t3.row)[[0, 2]], [0, 1])
     rng = np.random.default_rng(3)
     o = jnp.asarray(rng.uniform([0.3, 0.3, 0.3], ROOM_HI - 0.3, (300, 3)), jnp.float32)
@@ -416,6 +417,32 @@ def test_unusable_probes_take_no_maps_and_change_no_ray(room):
     p3, p2 = np.asarray(r3.probe), np.asarray(r2.probe)
     np.testing.assert_array_equal(np.where(p3 == 2, 1, p3), p2)  # probe 2 of three is probe 1 of two
     assert (p3 != 1).all()
+
+
+def test_padded_rows_change_no_ray(room):
+    """The maps' rows past the usable probes (``tracer_rows``: padded so that sets of nearby counts share
+    compiled programs) are zeros and never read: the tracer traces every ray exactly as the same tracer
+    cut to its usable rows; and the fallback's nearest index, padded to a power of two voxels an axis,
+    gives each point the candidates of the unpadded grid."""
+    scene, _ = room
+    lf = _bake(scene, np.array([[1.3, 1.1, 2.2], [2.0, 1.5, 2.5], [3.1, 1.9, 3.6]]), 8)
+    tr = make_tracer(lf, scene.bounds)
+    n = int(np.asarray(tr.usable).sum())
+    assert n == 3 and tr.surfel_r.shape[0] == tracer_rows(3) > n
+    fields = lambda t: (t.surfel_r, t.surfel_n, t.ambiguous_bits, t.bound_flat, t.upper_flat)
+    assert not any(np.asarray(a[n:]).any() for a in fields(tr))
+    cut = eqx.tree_at(fields, tr, tuple(a[:n] for a in fields(tr)))
+    near = np.asarray(tr.near.candidates)
+    d = tuple(int(v) for v in np.asarray(tr.near.dims))
+    assert near.shape[:3] != d and (near[d[0] :] == -1).all() and (near[:, d[1] :] == -1).all()
+    cut = eqx.tree_at(lambda t: t.near.candidates, cut, jnp.asarray(near[: d[0], : d[1], : d[2]]))
+    rng = np.random.default_rng(5)
+    o = jnp.asarray(rng.uniform([0.3, 0.3, 0.3], ROOM_HI - 0.3, (300, 3)), jnp.float32)
+    d = jnp.asarray(_unit(rng.normal(size=(300, 3))), jnp.float32)
+    a, b = trace_light_field(tr, o, d), trace_light_field(cut, o, d)
+    for f in ("status", "t", "texel", "steps", "probe"):
+        np.testing.assert_array_equal(np.asarray(getattr(a, f)), np.asarray(getattr(b, f)))
+    assert (np.asarray(a.status) == TraceStatus.HIT).any()
 
 
 @pytest.mark.isa
@@ -462,10 +489,12 @@ def test_tracer_bytes_counts_the_maps_it_builds(room):
         tr = make_tracer(lf, scene.bounds, config=TraceConfig(subdivide=sub))
         fields = ("surfel_r", "surfel_n", "ambiguous_bits", "bound_flat", "upper_flat")
         built = sum(np.asarray(getattr(tr, f)).nbytes for f in fields)
-        assert tracer_bytes(1, tr.res, sub) == built
+        assert tracer_bytes(tracer_rows(1), tr.res, sub) == built
     with pytest.MonkeyPatch.context() as mp:
-        mp.setenv("PROBEPLACE_MAX_BYTES", "20KB")  # the 32² tracer: 2 × 15 kB
-        with pytest.raises(ResourceError, match="light-field tracer of 1 usable probes at geometry_res=32"):
+        mp.setenv("PROBEPLACE_MAX_BYTES", "200KB")  # the 32² tracer: 2 × 8 rows × 15 kB
+        with pytest.raises(
+            ResourceError, match=r"tracer of 1 usable probes \(8 map rows\) at geometry_res=32"
+        ):
             make_tracer(lf, scene.bounds)
 
 

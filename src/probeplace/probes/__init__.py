@@ -48,6 +48,7 @@ from .tracer import trace_probe as trace_probe
 from .tracer import trace_ray as trace_ray
 from .tracer import trace_wavefront as trace_wavefront
 from .tracer import tracer_bytes as tracer_bytes
+from .tracer import tracer_rows as tracer_rows
 from .tracer import voxel_index as voxel_index
 
 # --- shading (EVAL helper, issue 4) ---

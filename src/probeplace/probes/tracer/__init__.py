@@ -23,5 +23,6 @@ from ._trace import make_tracer as make_tracer
 from ._trace import trace_probe as trace_probe
 from ._trace import trace_ray as trace_ray
 from ._trace import tracer_bytes as tracer_bytes
+from ._trace import tracer_rows as tracer_rows
 from ._wavefront import WavefrontStats as WavefrontStats
 from ._wavefront import trace_wavefront as trace_wavefront

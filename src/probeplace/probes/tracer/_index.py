@@ -25,7 +25,10 @@ import numpy as np
 from jaxtyping import Array, Float, Int
 from scipy.spatial import cKDTree
 
-from ..._core import ConfigError, LightFieldProbes, oct_encode, strip_border, texel_directions
+from ..._core import ConfigError, LightFieldProbes, next_pow2, oct_encode, strip_border, texel_directions
+
+# The nearest index's smallest padded voxel count an axis (:func:`nearest_index`).
+_NEAR_MIN_VOXELS = 8
 
 
 class GridIndex(eqx.Module):
@@ -63,14 +66,16 @@ class VoxelIndex(eqx.Module):
     Attributes:
         origin: world position of the grid's lower corner.
         voxel_size: voxel side per axis.
-        candidates: probe rows per voxel, best first, -1 padded.
-        dims: voxels per axis (static).
+        candidates: probe rows per voxel, best first, -1 padded; the grid may be padded beyond ``dims``
+            (:func:`nearest_index`), and those voxels are never read.
+        dims: voxels per axis that hold candidates. An array, not a static field: a set's voxel count
+            need not compile its own tracer programs (issue 33's demo compiled one per probe spacing).
     """
 
     origin: Float[Array, "3"]
     voxel_size: Float[Array, "3"]
     candidates: Int[Array, "nx ny nz k"]
-    dims: tuple[int, int, int] = eqx.field(static=True)
+    dims: Int[Array, "3"]
 
     @property
     def k(self) -> int:
@@ -78,7 +83,7 @@ class VoxelIndex(eqx.Module):
 
     def lookup(self, x: Float[Array, "3"]) -> tuple[Int[Array, " k"], Int[Array, ""]]:
         """Candidates of the voxel containing ``x`` (clamped into the grid) and the voxel's flat id."""
-        dims = jnp.asarray(self.dims, jnp.int32)
+        dims = self.dims
         v = jnp.clip(jnp.floor((x - self.origin) / self.voxel_size).astype(jnp.int32), 0, dims - 1)
         return self.candidates[v[0], v[1], v[2]], (v[0] * dims[1] + v[1]) * dims[2] + v[2]
 
@@ -221,7 +226,7 @@ def voxel_index(
         origin=jnp.asarray(lo, jnp.float32),
         voxel_size=jnp.full((3,), h, jnp.float32),
         candidates=jnp.asarray(cand.reshape(*dims, k)),
-        dims=dims,
+        dims=jnp.asarray(dims, jnp.int32),
     )
 
 
@@ -232,6 +237,10 @@ def nearest_index(
     its centre among those within ``radius`` + half the voxel's diagonal (so every probe within
     ``radius`` of a point of the voxel is a candidate unless more than ``k`` are), nearest first, -1
     padded. The light-field tracer's fallback search reads it instead of scanning every probe.
+
+    The voxel count follows the probes' spacing (through ``radius``), so the grid is padded to a power of
+    two voxels an axis, at least 8 (:data:`_NEAR_MIN_VOXELS`; 64 kB of -1 at ``k`` 32): sets that differ
+    only in spacing reuse the tracer's compiled programs. The padding is never read (``VoxelIndex.dims``).
 
     Raises:
         ConfigError: ``radius`` or ``k`` not positive.
@@ -251,9 +260,11 @@ def nearest_index(
         dist, idx = cKDTree(np.asarray(pos, np.float64)[use]).query(centres, k=min(k, len(use)))
         dist, idx = dist.reshape(len(centres), -1), idx.reshape(len(centres), -1)
         cand[:, : idx.shape[1]] = np.where(dist <= reach, use[np.minimum(idx, len(use) - 1)], -1)
+    padded = -np.ones((*(next_pow2(n, lo=_NEAR_MIN_VOXELS) for n in dims), k), np.int32)
+    padded[: dims[0], : dims[1], : dims[2]] = cand.reshape(*dims, k)
     return VoxelIndex(
         origin=jnp.asarray(lo, jnp.float32),
         voxel_size=jnp.full((3,), h, jnp.float32),
-        candidates=jnp.asarray(cand.reshape(*dims, k)),
-        dims=dims,
+        candidates=jnp.asarray(padded),
+        dims=jnp.asarray(dims, jnp.int32),
     )

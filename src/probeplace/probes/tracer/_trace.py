@@ -83,7 +83,7 @@ from ..._core import (
     unpack_normal,
 )
 from ..._core.runtime import check_settings, progress_bar, setting
-from .._bake import _warn_probe_layout
+from .._bake import _warn_probe_layout, padded_capacity
 from ._index import GridIndex, VoxelIndex, grid_index, nearest_index, voxel_index
 from ._march import _candidates, _partners, trace_probe
 from ._status import TraceStatus
@@ -208,8 +208,9 @@ class LightFieldTracer(eqx.Module):
     Attributes:
         pos_world: probe centres.
         usable: probes the tracer may use (active, not inside geometry).
-        row: each probe's row in the per-probe maps below, which hold the usable probes only; an
-            unusable probe's row is 0 and never read.
+        row: each probe's row in the per-probe maps below, which hold the usable probes only, in
+            :func:`tracer_rows` rows (the rows after them are zeros); an unusable probe's row is 0 and
+            never read.
         surfel_r: per geometry texel, *bordered* ((R+2)², the octahedral neighbours across the fold in
             the ring), the surfel's radial distance r, 0 where the texel's ray hit nothing (its has-surface
             flag: a surfel is never at the probe's centre, see :func:`_probe_cells`); its point is r·ω_c
@@ -496,10 +497,18 @@ def tracer_bytes(n_usable: int, res: int, subdivide: int) -> int:
     return int(n_usable) * (rb * rb * (4 + 3 * 2) + m * -(-m // 8) + 2 * levels)
 
 
+def tracer_rows(n_usable: int) -> int:
+    """Rows of a tracer's per-probe maps for ``n_usable`` usable probes: the bake's probe-count bucket
+    (:func:`~probeplace.probes.padded_capacity`; the rows past the usable probes are zeros, never read).
+    A set's usable count varies with its seed and method; rows in a few buckets let the tracer's programs
+    (the glossy shading's 8 s among them) compile once for all of them, not once per count."""
+    return padded_capacity(n_usable)
+
+
 def check_tracer_memory(n_usable: int, res: int, subdivide: int, counted: str = "usable probes") -> None:
-    """Refuse a light-field tracer whose maps (:func:`tracer_bytes`) cannot fit (``_core.check_memory``):
-    in :func:`make_tracer`, and in the runner before the bake with the probes placed (usable ≤ placed), so
-    a set too large to trace is refused before minutes of baking.
+    """Refuse a light-field tracer whose maps (:func:`tracer_bytes` of :func:`tracer_rows`) cannot fit
+    (``_core.check_memory``): in :func:`make_tracer`, and in the runner before the bake with the probes
+    placed (usable ≤ placed), so a set too large to trace is refused before minutes of baking.
 
     Twice the maps, as when they were staged on the host and copied to JAX; they are now stacked in place
     on the device (the peak is the maps plus one probe's working arrays), and the factor is kept as the
@@ -508,9 +517,11 @@ def check_tracer_memory(n_usable: int, res: int, subdivide: int, counted: str = 
     Raises:
         ResourceError: over the memory limit.
     """
+    rows = tracer_rows(n_usable)
     check_memory(
-        2 * tracer_bytes(n_usable, res, subdivide),
-        f"light-field tracer of {n_usable} {counted} at geometry_res={res}, subdivide={subdivide}",
+        2 * tracer_bytes(rows, res, subdivide),
+        f"light-field tracer of {n_usable} {counted} ({rows} map rows) at geometry_res={res}, "
+        f"subdivide={subdivide}",
         "lower the geometry maps' resolution (BakeConfig.geometry_res), use fewer probes, or subdivide=1",
     )
 
@@ -529,11 +540,11 @@ def _set_rows(stacks: tuple[Array, ...], arrays: tuple[Array, ...], i) -> tuple[
 
 
 def _all_probe_maps(
-    lf: LightFieldProbes, keep, config: TraceConfig, table
+    lf: LightFieldProbes, keep, rows: int, config: TraceConfig, table
 ) -> tuple[tuple[Array, ...], Array]:
-    """:func:`_probe_maps` of the probes ``keep``, stacked in that order (one probe at a time: no big
-    program per probe count), with a progress bar when there is much to do; and the bordered texel
-    directions. ``table``: the bound codes' table (:func:`bound_table`), the tracer's own."""
+    """:func:`_probe_maps` of the probes ``keep``, stacked in that order in ``rows`` rows (zeros after
+    them; one probe at a time: no big program per probe count), with a progress bar when there is much to
+    do; and the bordered texel directions. ``table``: the bound codes' table (:func:`bound_table`)."""
     kw = dict(sub=config.subdivide, tol=config.edge_tol, thickness=config.thickness)
     res = lf.geometry_res
     big_job = len(keep) * (res * config.subdivide) ** 2 >= 2**22  # ~ a few seconds and more
@@ -544,7 +555,7 @@ def _all_probe_maps(
         # one probe's normals unpacked at a time (a 1024-probe set at 512² would be 3 GiB as float32)
         *arrays, directions = _probe_maps(lf.distance[p], lf.normal16[p], lf.far, *cones, table, **kw)
         if out is None:
-            out = _first_rows(tuple(arrays), len(keep))
+            out = _first_rows(tuple(arrays), rows)
         else:
             out = _set_rows(out, tuple(arrays), np.int32(i))
         bar.update(1)
@@ -597,7 +608,8 @@ def make_tracer(
     # Inactive rows (e.g. padding to a fixed size so compiled code is reused) are not probes: skip them.
     _warn_probe_layout(pos[np.asarray(lf.active)], bn[0], bn[1], "make_tracer")
     usable = np.asarray(lf.active) & ~np.asarray(lf.inside)
-    # The per-probe arrays of the usable probes only (issue 33: a grid in Sponza has 42 of 128 usable).
+    # The per-probe arrays of the usable probes only (issue 33: a grid in Sponza has 42 of 128 usable),
+    # in rows padded to a bucket (tracer_rows).
     keep = np.flatnonzero(usable)
     check_tracer_memory(len(keep), res, config.subdivide)  # before the index
     if index is None:
@@ -607,7 +619,7 @@ def make_tracer(
             index = voxel_index(lf, b)
     far = jnp.asarray(lf.far, jnp.float32)
     table = bound_table(far)  # one array: the build codes against the entries the march reads
-    maps, texel_dirs = _all_probe_maps(lf, keep if len(keep) else [0], config, table)
+    maps, texel_dirs = _all_probe_maps(lf, keep if len(keep) else [0], tracer_rows(len(keep)), config, table)
     rb, nb, ambiguous_bits, bound_flat, upper_flat = maps
     row = np.zeros(len(pos), np.int32)  # unusable probes: row 0, never read (the index skips them)
     row[keep] = np.arange(len(keep), dtype=np.int32)
