@@ -37,6 +37,6 @@ def test_tracer_over_the_limit_is_refused_before_the_bake(tmp_path, monkeypatch)
     cfg = to_config(OmegaConf.to_container(compose(overrides), resolve=True))
     with pytest.raises(
         ResourceError,
-        match=r"light-field tracer of 8 placed probes \(all counted usable\) at geometry_res=2048",
+        match=r"tracer of 8 placed probes \(all counted usable\), 8 map rows, at geometry_res=2048",
     ):
         run(cfg)

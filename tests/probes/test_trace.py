@@ -492,9 +492,7 @@ def test_tracer_bytes_counts_the_maps_it_builds(room):
         assert tracer_bytes(tracer_rows(1), tr.res, sub) == built
     with pytest.MonkeyPatch.context() as mp:
         mp.setenv("PROBEPLACE_MAX_BYTES", "200KB")  # the 32² tracer: 2 × 8 rows × 15 kB
-        with pytest.raises(
-            ResourceError, match=r"tracer of 1 usable probes \(8 map rows\) at geometry_res=32"
-        ):
+        with pytest.raises(ResourceError, match="tracer of 1 usable probes, 8 map rows, at geometry_res=32"):
             make_tracer(lf, scene.bounds)
 
 

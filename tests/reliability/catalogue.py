@@ -632,8 +632,8 @@ CATALOGUE: list[Entry] = [
         "light-field tracer over the memory limit ($PROBEPLACE_MAX_BYTES=20KB; 16² maps of 8 probes)",
         _tracer_over_limit,
         ResourceError,
-        r"light-field tracer of \d+ usable probes at geometry_res=16, subdivide=2 needs ~\d+ bytes .* over "
-        r"the limit .*lower the geometry maps' resolution",
+        r"light-field tracer of \d+ usable probes, \d+ map rows, at geometry_res=16, subdivide=2 needs ~\d+ "
+        r"bytes .* over the limit .*lower the geometry maps' resolution",
     ),
     Entry(
         "render-image-too-large",

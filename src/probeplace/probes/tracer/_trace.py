@@ -520,7 +520,7 @@ def check_tracer_memory(n_usable: int, res: int, subdivide: int, counted: str = 
     rows = tracer_rows(n_usable)
     check_memory(
         2 * tracer_bytes(rows, res, subdivide),
-        f"light-field tracer of {n_usable} {counted} ({rows} map rows) at geometry_res={res}, "
+        f"light-field tracer of {n_usable} {counted}, {rows} map rows, at geometry_res={res}, "
         f"subdivide={subdivide}",
         "lower the geometry maps' resolution (BakeConfig.geometry_res), use fewer probes, or subdivide=1",
     )
