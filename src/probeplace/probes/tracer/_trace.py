@@ -486,15 +486,15 @@ def _probe_maps(
     return rb, nb, *_cell_maps(*cells, table), directions
 
 
-def tracer_bytes(n_usable: int, res: int, subdivide: int) -> int:
-    """Bytes of a tracer's per-probe maps (:class:`LightFieldTracer`) for ``n_usable`` usable probes at
-    geometry resolution ``res``: bordered surfel distances (float32) and normals (bfloat16 × 3), the
-    ambiguous cells' bits and the lower- and upper-bound pyramids (a byte a code, levels 1 … top) of the
-    ``res·subdivide``² march cells. 3.5 MB a probe at 512², ``subdivide`` 2; 2.8 MB at ``subdivide`` 1
-    (the shared texel directions, 3 MB once, are not counted)."""
+def tracer_bytes(n_rows: int, res: int, subdivide: int) -> int:
+    """Bytes of a tracer's per-probe maps (:class:`LightFieldTracer`) in ``n_rows`` rows (a usable probe a
+    row, padded to :func:`tracer_rows`) at geometry resolution ``res``: bordered surfel distances (float32)
+    and normals (bfloat16 × 3), the ambiguous cells' bits and the lower- and upper-bound pyramids (a byte a
+    code, levels 1 … top) of the ``res·subdivide``² march cells. 3.5 MB a row at 512², ``subdivide`` 2;
+    2.8 MB at ``subdivide`` 1 (the shared texel directions, 3 MB once, are not counted)."""
     rb, m = res + 2, res * subdivide
     levels = sum((m >> k) ** 2 for k in range(1, m.bit_length()))  # level 0 is not stored
-    return int(n_usable) * (rb * rb * (4 + 3 * 2) + m * -(-m // 8) + 2 * levels)
+    return int(n_rows) * (rb * rb * (4 + 3 * 2) + m * -(-m // 8) + 2 * levels)
 
 
 def tracer_rows(n_usable: int) -> int:
@@ -534,8 +534,9 @@ def _first_rows(arrays: tuple[Array, ...], n: int) -> tuple[Array, ...]:
 
 @partial(jax.jit, donate_argnums=0)
 def _set_rows(stacks: tuple[Array, ...], arrays: tuple[Array, ...], i) -> tuple[Array, ...]:
-    """``stacks[k][i] = arrays[k]`` in place (the stacks are donated): a small program per probe count,
-    instead of staging every probe's maps on the host and copying them back (2 × 3.5 MB a probe at 512²)."""
+    """``stacks[k][i] = arrays[k]`` in place (the stacks are donated): a small program per row count
+    (:func:`tracer_rows`), instead of staging every probe's maps on the host and copying them back
+    (2 × 3.5 MB a probe at 512²)."""
     return tuple(s.at[i].set(a) for s, a in zip(stacks, arrays, strict=True))
 
 
