@@ -153,3 +153,26 @@ def test_binary_visibility_reads_the_capability(cornell):
     assert a.any()
     # float32 rounding of t_max may flip a handful of grazing rays between the two backends
     assert (a != b).mean() < 1e-3
+
+
+def test_occluded_host_pads_batches_so_varying_sizes_share_one_program(cornell):
+    """A JAX caster's host query pads its batch to a power of two (≥ 64) with rays that hit nothing: the
+    bake's inside test and the fitness's camera test send batches of every size, and each size compiled
+    ``occluded`` again (24 programs in ``make demo``). The answers are the unpadded query's."""
+    from probeplace.geometry._raycast import _host_batch_size
+
+    assert [_host_batch_size(n) for n in (0, 1, 64, 65, 65536, 65537)] == [64, 64, 64, 128, 65536, 131072]
+    caster = make_caster(cornell, "brute")
+    o, d, t_max = _rays(cornell)
+    whole = np.asarray(caster.occluded(jnp.asarray(o), jnp.asarray(d), jnp.asarray(t_max)))
+    caster.occluded_host(o[:65], d[:65], t_max[:65])  # the 128-ray program
+    traces = BruteForceCaster.occluded._cached._cache_size()
+    for n in (65, 100, 128):
+        np.testing.assert_array_equal(caster.occluded_host(o[:n], d[:n], t_max[:n]), whole[:n])
+    assert BruteForceCaster.occluded._cached._cache_size() == traces  # 65 … 128 rays: one program
+    for n in (0, 1, 64):
+        np.testing.assert_array_equal(caster.occluded_host(o[:n], d[:n], t_max[:n]), whole[:n])
+    # a scalar t_max is broadcast to the rays
+    np.testing.assert_array_equal(
+        caster.occluded_host(o[:3], d[:3], 1e9), caster.occluded_host(o[:3], d[:3], [1e9] * 3)
+    )

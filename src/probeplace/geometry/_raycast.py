@@ -20,7 +20,7 @@ import jax.numpy as jnp
 import numpy as np
 from jaxtyping import Array, Bool, Float, Int
 
-from .._core import Hit, Scene, safe_normalize
+from .._core import Hit, Scene, next_pow2, safe_normalize
 
 
 class AbstractRayCaster(eqx.Module):
@@ -73,17 +73,37 @@ class AbstractRayCaster(eqx.Module):
 class AbstractJaxRayCaster(AbstractRayCaster):
     """A caster whose queries are JAX code: jittable, and its host query is the jitted one converted.
 
-    Each new batch size of :meth:`occluded_host` compiles :meth:`occluded` once more; callers that cast
-    many batches pad them to a few sizes (as ``placement.binary_visibility`` does).
+    Each new batch size compiles :meth:`occluded` once more, so :meth:`occluded_host` pads its batch to
+    a few sizes (:func:`_host_batch_size`): host callers whose batches vary (the bake's inside test, the
+    fitness's camera test) compile a few programs a process, not one a call.
     """
 
     jittable: ClassVar[bool] = True
 
     def occluded_host(self, origins, directions, t_max) -> np.ndarray:
-        """:meth:`occluded` as a host (NumPy) boolean array, computed by the jitted query."""
-        o = jnp.asarray(origins)
-        tm = jnp.asarray(t_max, o.dtype)
-        return np.asarray(self.occluded(o, jnp.asarray(directions, o.dtype), tm))
+        """:meth:`occluded` as a host (NumPy) boolean array, computed by the jitted query on a padded batch.
+
+        The padding rays have ``t_max = 0``, so they hit nothing (a hit needs ``0 < t < t_max``); they are
+        cut off before returning.
+        """
+        dtype = jax.dtypes.canonicalize_dtype(np.asarray(origins).dtype)
+        n = len(origins)
+        size = _host_batch_size(n)
+        o = np.zeros((size, 3), dtype)
+        d = np.zeros((size, 3), dtype)
+        tm = np.zeros(size, dtype)
+        o[:n], d[:n], tm[:n] = origins, directions, t_max
+        d[n:, 2] = 1.0  # unit directions where a caster reads them
+        return np.asarray(self.occluded(jnp.asarray(o), jnp.asarray(d), jnp.asarray(tm)))[:n]
+
+
+_HOST_BATCH_STEP = 65536  # above this, batches pad to a multiple of it: under 65,536 rays more
+
+
+def _host_batch_size(n: int) -> int:
+    """The padded size of a host batch of ``n`` rays: a power of two from 64 up to 65,536, then multiples
+    of 65,536 (at most twice the rays, or 65,535 more)."""
+    return next_pow2(n, lo=64) if n <= _HOST_BATCH_STEP else -(-n // _HOST_BATCH_STEP) * _HOST_BATCH_STEP
 
 
 @eqx.filter_jit

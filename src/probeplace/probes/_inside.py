@@ -41,10 +41,8 @@ def _segments_clear(caster, a: np.ndarray, b: np.ndarray) -> np.ndarray:
     clear = np.ones(len(a), bool)
     if ok.any():
         d = v[ok] / length[ok, None]
-        occ = caster.occluded(
-            jnp.asarray(a[ok], jnp.float32), jnp.asarray(d, jnp.float32), jnp.asarray(length[ok], jnp.float32)
-        )
-        clear[ok] = ~np.asarray(occ)
+        f32 = np.float32
+        clear[ok] = ~caster.occluded_host(a[ok].astype(f32), d.astype(f32), length[ok].astype(f32))
     return clear
 
 

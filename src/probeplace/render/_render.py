@@ -276,9 +276,7 @@ def _batch_host(ctx, caster, source, seed, offset, pix0, smp0, spp, n_items, p, 
             occ = np.zeros(n, bool)
             if len(cast):
                 so, sd = np.asarray(shadow.origin), np.asarray(shadow.direction)
-                occ[cast] = np.asarray(
-                    caster.occluded(jnp.asarray(so[cast]), jnp.asarray(sd[cast]), jnp.asarray(t_max[cast]))
-                )
+                occ[cast] = caster.occluded_host(so[cast], sd[cast], t_max[cast])
             paths = _add_shadowed_jit(paths, jnp.asarray(occ), kk)
     return _reduce_jit(paths, valid)
 

@@ -178,8 +178,7 @@ def crossing_bits(
         d[:, a] = 1.0
         hit = np.zeros(len(sel), bool)
         for s in range(0, len(sel), chunk):
-            o = jnp.asarray(orig[s : s + chunk])
-            hit[s : s + chunk] = np.asarray(caster.occluded(o, jnp.asarray(d[s : s + chunk]), float(step[a])))
+            hit[s : s + chunk] = caster.occluded_host(orig[s : s + chunk], d[s : s + chunk], float(step[a]))
         bits[a].reshape(-1)[sel] = hit
     return bits
 

@@ -266,9 +266,9 @@ def seen_from_views(scene: Scene, samples: SurfaceSamples, *, two_sided: bool = 
         if not ok.any():
             continue
         d = v[ok] / dist[ok, None]
-        f32 = lambda a: jnp.asarray(a, jnp.float32)
-        occ = caster.occluded(f32(start[ok]), f32(d), f32(dist[ok]))
-        seen[np.flatnonzero(ok)[~np.asarray(occ)]] = True
+        f32 = np.float32
+        occ = caster.occluded_host(start[ok].astype(f32), d.astype(f32), dist[ok].astype(f32))
+        seen[np.flatnonzero(ok)[~occ]] = True
     return seen
 
 
