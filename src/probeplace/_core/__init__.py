@@ -69,6 +69,7 @@ _LAZY = {
             "oct_encode",
             "oct_wrap",
             "pack_normal",
+            "padded_count",
             "safe_norm",
             "safe_normalize",
             "safe_sqrt",
@@ -162,6 +163,7 @@ if TYPE_CHECKING:  # what static checkers and IDEs see; __getattr__ gives the sa
     from .maths import oct_encode as oct_encode
     from .maths import oct_wrap as oct_wrap
     from .maths import pack_normal as pack_normal
+    from .maths import padded_count as padded_count
     from .maths import safe_norm as safe_norm
     from .maths import safe_normalize as safe_normalize
     from .maths import safe_sqrt as safe_sqrt

@@ -20,7 +20,7 @@ import jax.numpy as jnp
 import numpy as np
 from jaxtyping import Array, Bool, Float, Int
 
-from .._core import Hit, Scene, next_pow2, safe_normalize
+from .._core import Hit, Scene, padded_count, safe_normalize
 
 
 class AbstractRayCaster(eqx.Module):
@@ -97,13 +97,10 @@ class AbstractJaxRayCaster(AbstractRayCaster):
         return np.asarray(self.occluded(jnp.asarray(o), jnp.asarray(d), jnp.asarray(tm)))[:n]
 
 
-_HOST_BATCH_STEP = 65536  # above this, batches pad to a multiple of it: under 65,536 rays more
-
-
 def _host_batch_size(n: int) -> int:
     """The padded size of a host batch of ``n`` rays: a power of two from 64 up to 65,536, then multiples
     of 65,536 (at most twice the rays, or 65,535 more)."""
-    return next_pow2(n, lo=64) if n <= _HOST_BATCH_STEP else -(-n // _HOST_BATCH_STEP) * _HOST_BATCH_STEP
+    return padded_count(n, lo=64, step=65536)
 
 
 @eqx.filter_jit

@@ -84,8 +84,8 @@ from .._core import (
     dot3,
     fill_border,
     jittered_texel_directions,
-    next_pow2,
     pack_normal,
+    padded_count,
     scene_box,
     surfel_directions,
     texel_directions,
@@ -530,7 +530,7 @@ def padded_capacity(n: int) -> int:
     """The capacity a set of ``n`` probes is padded to before a bake (:func:`pad_probes`): a power of two
     from 8 to 64, then a multiple of 64. Bake, tracer and shading programs are compiled per probe count;
     with a few capacities a new budget, seed or method reuses them (issue 32)."""
-    return next_pow2(n, lo=8) if n <= 64 else -(-n // 64) * 64
+    return padded_count(n, lo=8, step=64)
 
 
 def pad_probes(probes: ProbeSet) -> ProbeSet:

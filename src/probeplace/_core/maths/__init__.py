@@ -18,7 +18,17 @@ _LAZY = {
     **dict.fromkeys(("take_queued", "write_finished"), "_lanes"),
     "REC709_LUMA": "_colour",
     **dict.fromkeys(
-        ("dot3", "luminance", "next_pow2", "norm3", "safe_norm", "safe_normalize", "safe_sqrt"), "_math"
+        (
+            "dot3",
+            "luminance",
+            "next_pow2",
+            "norm3",
+            "padded_count",
+            "safe_norm",
+            "safe_normalize",
+            "safe_sqrt",
+        ),
+        "_math",
     ),
     **dict.fromkeys(
         (
@@ -54,6 +64,7 @@ if TYPE_CHECKING:  # what static checkers and IDEs see; __getattr__ gives the sa
     from ._math import luminance as luminance
     from ._math import next_pow2 as next_pow2
     from ._math import norm3 as norm3
+    from ._math import padded_count as padded_count
     from ._math import safe_norm as safe_norm
     from ._math import safe_normalize as safe_normalize
     from ._math import safe_sqrt as safe_sqrt

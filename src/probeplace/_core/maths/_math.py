@@ -64,3 +64,14 @@ def next_pow2(n: SupportsIndex, *, lo: int = 1, hi: int | None = None) -> int:
     """
     p = max(lo, 1 << max(operator.index(n) - 1, 0).bit_length())
     return p if hi is None else min(hi, p)
+
+
+def padded_count(n: SupportsIndex, *, lo: int, step: int) -> int:
+    """A batch of ``n`` padded to one of a few sizes: a power of two from ``lo`` up to ``step``, then a
+    multiple of ``step`` (at most twice ``n`` below ``step``, under ``step`` more above it).
+
+    Host helper, as :func:`next_pow2`, for counts that may grow past what doubling should pad (probe
+    rows, host ray batches). ``step`` is a power of two ≥ ``lo``.
+    """
+    n = operator.index(n)
+    return next_pow2(n, lo=lo) if n <= step else -(-n // step) * step
