@@ -41,8 +41,8 @@ def _segments_clear(caster, a: np.ndarray, b: np.ndarray) -> np.ndarray:
     clear = np.ones(len(a), bool)
     if ok.any():
         d = v[ok] / length[ok, None]
-        f32 = np.float32
-        clear[ok] = ~caster.occluded_host(a[ok].astype(f32), d.astype(f32), length[ok].astype(f32))
+        a32, d32, t32 = (x.astype(np.float32) for x in (a[ok], d, length[ok]))
+        clear[ok] = ~caster.occluded_host(a32, d32, t32)
     return clear
 
 

@@ -266,9 +266,8 @@ def seen_from_views(scene: Scene, samples: SurfaceSamples, *, two_sided: bool = 
         if not ok.any():
             continue
         d = v[ok] / dist[ok, None]
-        f32 = np.float32
-        occ = caster.occluded_host(start[ok].astype(f32), d.astype(f32), dist[ok].astype(f32))
-        seen[np.flatnonzero(ok)[~occ]] = True
+        o32, d32, t32 = (x.astype(np.float32) for x in (start[ok], d, dist[ok]))
+        seen[np.flatnonzero(ok)[~caster.occluded_host(o32, d32, t32)]] = True
     return seen
 
 
