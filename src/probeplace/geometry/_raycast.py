@@ -86,7 +86,8 @@ class AbstractJaxRayCaster(AbstractRayCaster):
         The padding rays have ``t_max = 0``, so they hit nothing (a hit needs ``0 < t < t_max``); they are
         cut off before returning.
         """
-        dtype = jax.dtypes.canonicalize_dtype(np.asarray(origins).dtype)
+        origins = np.asarray(origins)  # once: a device array is fetched here, not again below
+        dtype = jax.dtypes.canonicalize_dtype(origins.dtype)
         n = len(origins)
         size = _host_batch_size(n)
         o = np.zeros((size, 3), dtype)
