@@ -59,3 +59,8 @@ def sweep_params(preset: str) -> dict[str, list[str]]:
             list(ov.sweep_string_iterator()) if ov.is_sweep_override() else [ov.get_value_element_as_str()]
         )
     return out
+
+
+def first_point(preset: str) -> list[str]:
+    """The overrides of the preset's first sweep point but its method (the tests choose their own)."""
+    return [f"{k}={v[0]}" for k, v in sweep_params(preset).items() if k != "method"]

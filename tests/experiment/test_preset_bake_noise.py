@@ -26,7 +26,7 @@ from probeplace._core import is_auto
 from probeplace.experiment import bake_config, to_config
 from probeplace.scene import BUILTIN_SCENES
 
-from ._util import PRESETS, compose, sweep_params
+from ._util import PRESETS, compose, first_point
 
 #: the other scenes a preset's comment runs it on
 _OTHER_SCENES = {"equal_count_small": ["scene=rooms"]}
@@ -38,7 +38,7 @@ def _bakes():
     out, seen = [], set()
     for preset in PRESETS:
         for extra in [[], *[[o] for o in _OTHER_SCENES.get(preset, [])]]:
-            point = [f"{k}={v[0]}" for k, v in sweep_params(preset).items() if k != "method"]
+            point = first_point(preset)
             cfg = to_config(compose([f"+experiment={preset}", *point, *extra]))
             if not cfg.bake.enabled or is_auto(cfg.bake.spp) or cfg.scene.name not in BUILTIN_SCENES:
                 continue

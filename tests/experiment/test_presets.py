@@ -12,7 +12,7 @@ from probeplace._core import ConfigError, load_probe_set
 from probeplace.experiment import is_complete, make_report, run, to_config
 from probeplace.render import resolve_backend
 
-from ._util import PRESETS, compose, sweep_params
+from ._util import PRESETS, compose, first_point
 
 # Small enough to run in seconds, large enough for every stage to do real work.
 TINY = [
@@ -37,7 +37,7 @@ TINY = [
 
 def _tiny_run(preset: str, tmp_path, extra: list[str] = ()):
     """The preset's first sweep point (skeleton placement: cheap and always available), tiny sizes."""
-    point = [f"{k}={v[0]}" for k, v in sweep_params(preset).items() if k != "method"]
+    point = first_point(preset)
     cfg = to_config(
         compose(
             [f"+experiment={preset}", *point, "method=skeleton", *TINY, f"results_dir={tmp_path}", *extra]
