@@ -37,12 +37,12 @@ def _bakes():
     with ``bake.spp: auto`` meets the target by itself)."""
     out, seen = [], set()
     for preset in PRESETS:
+        point = first_point(preset)
         for extra in [[], *[[o] for o in _OTHER_SCENES.get(preset, [])]]:
-            point = first_point(preset)
             cfg = to_config(compose([f"+experiment={preset}", *point, *extra]))
             if not cfg.bake.enabled or is_auto(cfg.bake.spp) or cfg.scene.name not in BUILTIN_SCENES:
                 continue
-            key = (cfg.scene.name, str(bake_config(cfg)), cfg.bake.spp, cfg.tracer.max_depth)
+            key = (cfg.scene.name, bake_config(cfg), cfg.bake.spp, cfg.tracer.max_depth)  # frozen: hashable
             if key not in seen:
                 seen.add(key)
                 out.append(pytest.param(preset, point + extra, id="-".join([preset, *extra])))
