@@ -33,8 +33,8 @@ _OTHER_SCENES = {"equal_count_small": ["scene=rooms"]}
 
 
 def _bakes():
-    """(preset, overrides) for each distinct fixed-count bake of the presets on built-in scenes (a preset
-    with ``bake.spp: auto`` meets the target by itself)."""
+    """(preset, its composed config) for each distinct fixed-count bake of the presets on built-in scenes
+    (a preset with ``bake.spp: auto`` meets the target by itself)."""
     out, seen = [], set()
     for preset in PRESETS:
         point = first_point(preset)
@@ -45,17 +45,16 @@ def _bakes():
             key = (cfg.scene.name, bake_config(cfg), cfg.bake.spp, cfg.tracer.max_depth)  # frozen: hashable
             if key not in seen:
                 seen.add(key)
-                out.append(pytest.param(preset, point + extra, id="-".join([preset, *extra])))
+                out.append(pytest.param(preset, cfg, id="-".join([preset, *extra])))
     return out
 
 
-@pytest.mark.parametrize("preset, overrides", _bakes())
-def test_preset_bake_count_meets_the_noise_target(preset, overrides):
+@pytest.mark.parametrize("preset, cfg", _bakes())
+def test_preset_bake_count_meets_the_noise_target(preset, cfg):
     from probeplace.placement import place
     from probeplace.probes import bake_depth_for, choose_bake_spp, path_traced_radiance
     from probeplace.scene import load_scene
 
-    cfg = to_config(compose([f"+experiment={preset}", *overrides]))
     config = bake_config(cfg)
     scene = load_scene(cfg.scene.name)
     probes = place(scene, method="grid", budget=cfg.placer.budget, seed=cfg.seed).probes
